@@ -1,0 +1,1 @@
+"""Classical estimators: numpy/scipy only (no torch, no onnxruntime)."""

@@ -1,0 +1,29 @@
+"""Task registry: ``get_task("strips")`` returns the task object that eval, train, export and
+bench ask for everything task-specific."""
+
+from __future__ import annotations
+
+import importlib
+
+from synth.errors import ConfigError
+from tactile_learn.tasks.base import EvalData, Task
+
+__all__ = ["TASK_NAMES", "EvalData", "Task", "get_task"]
+
+#: task name -> "module:TaskClass"
+_TASKS: dict[str, str] = {
+    "strips": "tactile_learn.tasks.strips:StripsTask",
+    "thermal": "tactile_learn.tasks.thermal:ThermalTask",
+    "fsr": "tactile_learn.tasks.fsr:FsrTask",
+}
+TASK_NAMES: tuple[str, ...] = tuple(_TASKS)
+
+
+def get_task(name: str) -> Task:
+    """The task object for ``name`` (its module is imported on first use)."""
+    try:
+        module_name, class_name = _TASKS[name].split(":")
+    except KeyError:
+        raise ConfigError(f"--task: {name!r} is not one of {', '.join(TASK_NAMES)}") from None
+    task: Task = getattr(importlib.import_module(module_name), class_name)()
+    return task

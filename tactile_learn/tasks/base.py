@@ -1,0 +1,132 @@
+"""What a task (strips, thermal, fsr) tells the generic machinery: eval, train, export, bench.
+
+A task names its estimator input and truth arrays, lists its classical methods, loads evaluation
+data (a generated dataset, an ``.npz`` file or the task's own recording format), computes its
+metrics, and, for learning, builds its torch networks and loss. Everything generic (the training
+loop, checkpoints, ONNX export, the runtime, the benchmark, the CLI) lives elsewhere and asks the
+task. Torch is only imported inside the learning methods.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from synth.scene import Scene
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.validation import as_batch
+
+if TYPE_CHECKING:  # torch only for type checking: importing a task never imports torch
+    import torch
+
+__all__ = ["EvalData", "Task"]
+
+
+@dataclass
+class EvalData:
+    """Frames to evaluate on.
+
+    ``inputs`` is what ``Estimator.predict`` takes (batch first, float32); ``truth`` holds the
+    arrays the metrics compare against; ``extra`` holds anything else known per frame (latent
+    parameters, group labels) for breakdowns.
+    """
+
+    inputs: np.ndarray
+    truth: dict[str, np.ndarray]
+    scene: Scene
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    source: str = ""
+
+    def __len__(self) -> int:
+        return len(self.inputs)
+
+    def subset(self, index: np.ndarray | slice) -> EvalData:
+        """The frames selected by ``index`` (arrays of per-frame data are indexed alike)."""
+        return EvalData(
+            inputs=self.inputs[index],
+            truth={k: v[index] for k, v in self.truth.items()},
+            scene=self.scene,
+            extra={k: v[index] for k, v in self.extra.items()},
+            source=self.source,
+        )
+
+
+class Task(ABC):
+    #: task name, also the scene table and the CLI's ``--task`` value
+    name: ClassVar[str]
+    #: scene used when the user names none
+    default_scene: ClassVar[str]
+    #: dataset array that estimators take as input, and the ONNX input name
+    input_key: ClassVar[str]
+    #: ONNX output name (the array ``predict`` returns)
+    output_key: ClassVar[str]
+    #: dataset arrays that training and metrics need besides the input
+    truth_keys: ClassVar[tuple[str, ...]]
+    #: (metric name, True if higher is better): early stopping, bench Pareto plots
+    primary_metric: ClassVar[tuple[str, bool]]
+    #: network sizes ``build_net`` accepts, smallest first
+    net_sizes: ClassVar[tuple[str, ...]] = ()
+
+    # ---- data and evaluation (numpy only) ----------------------------------------------------
+
+    @abstractmethod
+    def input_shape(self, scene: Scene) -> tuple[int, ...]:
+        """Per-frame shape of ``predict``'s input for ``scene``."""
+
+    @abstractmethod
+    def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
+        """Registry of classical estimators: name -> factory taking the scene."""
+
+    @abstractmethod
+    def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
+        """Frames from a dataset folder, an ``.npz`` file, or the task's recording format."""
+
+    @abstractmethod
+    def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
+        """Metrics of predictions ``pred`` (what ``predict`` returned for ``data.inputs``)."""
+
+    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
+        """Validated float32 batch for ``predict`` (every estimator, classical or ONNX, calls this).
+        Tasks override it to add their own physical bounds (e.g. a saturated ADC)."""
+        return as_batch(inputs, self.input_shape(scene), name=self.input_key)
+
+    def calibrate(self, source: str | Path, out: str | Path, scene: Scene) -> dict[str, Any]:
+        """Fit the user's own sensor from labelled recordings in ``source``; write a scene TOML
+        (usable by ``generate --scene``) to ``out``; return a summary for the CLI to print."""
+        raise NotImplementedError(f"task {self.name!r} has no calibration")
+
+    def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
+        """Metrics of ``estimator`` on ``data``. Tasks that evaluate several views of the same
+        frames (e.g. thermal contact durations) override this."""
+        return self.metrics(estimator.predict(data.inputs), data)
+
+    # ---- learning (torch imported inside the implementations) --------------------------------
+
+    def fit_stats(self, arrays: dict[str, np.ndarray], scene: Scene) -> dict[str, Any]:
+        """Normalisation statistics from (a sample of) the training arrays; JSON-serialisable."""
+        raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+    def training_batch(
+        self, arrays: dict[str, np.ndarray], scene: Scene, rng: np.random.Generator
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Network input and loss targets for one batch of dataset arrays (augmentation goes here)."""
+        raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+    def build_net(self, size: str, scene: Scene, stats: dict[str, Any]) -> torch.nn.Module:
+        """A network mapping raw float32 inputs to exactly what ``predict`` returns (normalisation
+        inside, as buffers, so the exported ONNX graph is self-contained)."""
+        raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+    def train_forward(self, net: torch.nn.Module, inputs: torch.Tensor) -> torch.Tensor:
+        """The output the loss sees during training (default ``net(inputs)``); a classifier may
+        return logits here while its ``forward`` returns probabilities."""
+        return net(inputs)  # type: ignore[no-any-return]
+
+    def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Training loss of the network output against the targets from ``training_batch``."""
+        raise NotImplementedError(f"task {self.name!r} has no learned models")
