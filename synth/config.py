@@ -71,7 +71,7 @@ def _check_number(value: Any, tp: type, path: str) -> float | int:
     return tp(value)
 
 
-def _check_range(value: float, meta: Mapping[str, Any], path: str) -> None:
+def _check_range(value: float | int, meta: Mapping[str, Any], path: str) -> None:
     lo, hi = meta.get("lo"), meta.get("hi")
     unit = f" {meta['unit']}" if meta.get("unit") else ""
     if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
@@ -128,7 +128,7 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], path: str) -> Any:
         return value
     if tp in (int, float):
         number = _check_number(value, tp, path)
-        _check_range(float(number), meta, path)
+        _check_range(number, meta, path)
         return number
     if tp is str:
         if not isinstance(value, str):
@@ -217,9 +217,12 @@ def json_string(text: str) -> str:
 
 
 def dumps_toml(data: Mapping[str, Any], _prefix: str = "") -> str:
-    """Serialise nested dicts of scalars, lists and lists of tables to TOML text."""
+    """Serialise nested dicts of scalars, lists and lists of tables to TOML text (``None``
+    values are left out: TOML has no null, and such fields default to ``None``)."""
     scalars, tables, table_arrays = [], [], []
     for key, value in data.items():
+        if value is None:
+            continue  # TOML has no null: an absent key means "not set" (fields default to None)
         if isinstance(value, Mapping):
             tables.append((key, value))
         elif isinstance(value, (list, tuple)) and value and all(isinstance(v, Mapping) for v in value):

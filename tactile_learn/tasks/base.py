@@ -71,6 +71,13 @@ class Task(ABC):
     primary_metric: ClassVar[tuple[str, bool]]
     #: network sizes ``build_net`` accepts, smallest first
     net_sizes: ClassVar[tuple[str, ...]] = ()
+    #: training epochs when the user names none (the default run must reach the task's floors)
+    default_epochs: ClassVar[int] = 30
+
+    @property
+    def train_keys(self) -> tuple[str, ...]:
+        """Dataset arrays that ``training_batch`` needs (default: the input and the truth)."""
+        return (self.input_key, *self.truth_keys)
 
     # ---- data and evaluation (numpy only) ----------------------------------------------------
 

@@ -1,0 +1,145 @@
+"""Configuration of the soft strip array (the ``[strips]`` table of a scene)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from synth.config import param
+from synth.errors import ConfigError
+
+__all__ = [
+    "CoverLayer",
+    "Piezoresistive",
+    "StimulusKind",
+    "StripGeometry",
+    "StripReadout",
+    "StripStimuli",
+    "StripsConfig",
+]
+
+
+@dataclass(frozen=True)
+class StripGeometry:
+    """Row strips run along x and are stacked along y; column strips run along y. Intersection
+    (i, j) is the ``pitch x pitch`` cell centred where row ``i`` crosses column ``j``."""
+
+    n_rows: int = param(16, lo=1, hi=128, doc="row strips (N)")
+    n_cols: int = param(16, lo=1, hi=128, doc="column strips (M)")
+    pitch_mm: float = param(2.5, lo=0.1, hi=50.0, unit="mm", doc="centre-to-centre strip spacing")
+    strip_width_mm: float = param(2.0, lo=0.01, hi=50.0, unit="mm", doc="conductive width of a strip")
+    samples_per_pitch: int = param(4, lo=4, hi=32, doc="fine-lattice samples per pitch (pressure field)")
+
+    def __post_init__(self) -> None:
+        if self.strip_width_mm > self.pitch_mm:
+            raise ConfigError(
+                f"geometry.strip_width_mm: {self.strip_width_mm} mm is wider than the pitch ({self.pitch_mm} mm)"
+            )
+
+
+@dataclass(frozen=True)
+class CoverLayer:
+    """The elastic cover the stimuli press on; row strips lie ``cover_mm`` deep, column strips a
+    further ``strip_thickness_mm`` below them."""
+
+    cover_mm: float = param(1.0, lo=0.01, hi=20.0, unit="mm", doc="cover thickness above the row strips")
+    strip_thickness_mm: float = param(0.5, lo=0.0, hi=10.0, unit="mm", doc="row strip thickness")
+    youngs_modulus_mpa: float = param(1.0, lo=0.01, hi=1000.0, unit="MPa", doc="cover's Young's modulus")
+    poisson_ratio: float = param(0.49, lo=0.0, hi=0.5, doc="cover's Poisson ratio")
+    kernel_rank_tol: float = param(1e-4, lo=1e-8, hi=0.1, doc="relative error of the separable stress kernel")
+
+    @property
+    def e_star_mpa(self) -> float:
+        """Contact modulus of a rigid indenter on the cover, E / (1 - v^2)."""
+        return self.youngs_modulus_mpa / (1.0 - self.poisson_ratio**2)
+
+
+@dataclass(frozen=True)
+class Piezoresistive:
+    """Segment resistance ``R(p) = R_seg (1 + p / (g p0))^(-n)``; ``g`` is a strip's sensitivity
+    gain, drawn per frame around 1 with relative spread ``gain_spread``."""
+
+    strip_resistance_ohm: float = param(10_000.0, lo=1.0, hi=1e9, unit="ohm", doc="unloaded strip")
+    p0_kpa: float = param(100.0, lo=0.1, hi=1e5, unit="kPa", doc="pressure scale of the law")
+    exponent: float = param(1.0, lo=0.1, hi=5.0, doc="power-law exponent n")
+    gain_spread: float = param(0.05, lo=0.0, hi=0.3, doc="relative s.d. of the per-strip sensitivity")
+
+
+@dataclass(frozen=True)
+class StripReadout:
+    """Each strip in a divider with ``reference_ohm`` across ``supply_v``; an instrumentation
+    amplifier of ``amplifier_gain`` reads the divider relative to its unloaded level (auto-zeroed
+    at power-up) on top of ``offset_v``; then Gaussian noise and an ``adc_bits`` ADC over
+    ``0..supply_v``."""
+
+    supply_v: float = param(3.3, lo=0.1, hi=50.0, unit="V")
+    reference_ohm: float = param(10_000.0, lo=1.0, hi=1e9, unit="ohm")
+    amplifier_gain: float = param(6.0, lo=0.1, hi=1000.0)
+    offset_v: float = param(0.3, lo=0.0, hi=50.0, unit="V", doc="reading of an unloaded strip")
+    adc_bits: int = param(12, lo=4, hi=24)
+    noise_v: float = param(0.002, lo=0.0, hi=1.0, unit="V", doc="rms electrical noise")
+
+    def __post_init__(self) -> None:
+        if self.offset_v >= self.supply_v:
+            raise ConfigError(f"readout.offset_v: {self.offset_v} V must be below supply_v ({self.supply_v} V)")
+
+    @property
+    def lsb_v(self) -> float:
+        return self.supply_v / 2**self.adc_bits
+
+    @property
+    def full_scale_v(self) -> float:
+        """Largest reading the ADC can give: a reading this high is saturated."""
+        return (2**self.adc_bits - 1) * self.lsb_v
+
+
+@dataclass(frozen=True)
+class StimulusKind:
+    """One kind of indenter and the ranges its parameters are drawn from (uniformly).
+
+    ``radius_mm`` is the sphere's radius, the punch's radius or the edge's tip radius; ``width_mm``
+    applies to blocks; ``length_mm`` to blocks and edges; ``angle_deg`` to blocks and edges.
+    """
+
+    kind: Literal["sphere", "punch", "block", "edge"] = "sphere"
+    weight: float = param(1.0, lo=0.0, lo_open=True, hi=1e6, doc="relative frequency among kinds")
+    force_n: tuple[float, float] = param((0.5, 5.0), lo=0.0, hi=1000.0, unit="N", ordered=True)
+    radius_mm: tuple[float, float] = param((3.0, 8.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
+    width_mm: tuple[float, float] = param((1.0, 5.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
+    length_mm: tuple[float, float] = param((2.0, 10.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
+    angle_deg: tuple[float, float] = param((0.0, 180.0), lo=-360.0, hi=360.0, unit="deg", ordered=True)
+
+
+@dataclass(frozen=True)
+class StripStimuli:
+    """How many contacts a frame has and where: centres uniform over the array shrunk by
+    ``margin_mm`` on every side (negative: centres may fall outside the array)."""
+
+    count: tuple[int, int] = param((1, 2), lo=0, hi=16, ordered=True, doc="contacts per frame, [min, max]")
+    empty_fraction: float = param(0.0, lo=0.0, hi=1.0, doc="share of frames with no contact at all")
+    margin_mm: float = param(0.0, lo=-20.0, hi=100.0, unit="mm")
+    twin_fraction: float = param(
+        0.0, lo=0.0, hi=1.0, doc="share of multi-contact frames whose contacts are identical (ghost-ambiguous)"
+    )
+    kinds: tuple[StimulusKind, ...] = (StimulusKind(),)
+
+    def __post_init__(self) -> None:
+        if not self.kinds:
+            raise ConfigError("stimuli.kinds: at least one stimulus kind is needed")
+
+
+@dataclass(frozen=True)
+class StripsConfig:
+    geometry: StripGeometry = param(StripGeometry())
+    layers: CoverLayer = param(CoverLayer())
+    piezo: Piezoresistive = param(Piezoresistive())
+    readout: StripReadout = param(StripReadout())
+    stimuli: StripStimuli = param(StripStimuli())
+
+    def __post_init__(self) -> None:
+        g = self.geometry
+        if self.stimuli.margin_mm * 2 >= min(g.n_rows, g.n_cols) * g.pitch_mm:
+            raise ConfigError(
+                f"stimuli.margin_mm: {self.stimuli.margin_mm} mm leaves no room for contacts on a "
+                f"{g.n_rows * g.pitch_mm} x {g.n_cols * g.pitch_mm} mm array"
+            )

@@ -1,0 +1,205 @@
+"""Export a finished run to ONNX with a parity check and a model card.
+
+``export(RUN, models/NAME.onnx)``:
+
+1. rebuilds the task's network from ``RUN/model.pt`` (best epoch) in eval mode;
+2. exports it with the torch dynamo exporter (opset :data:`OPSET`, dynamic batch axis), and embeds
+   JSON metadata (task, scene digest, grid, normalisation, package version) in the graph;
+3. checks parity: onnxruntime and torch agree to ``PARITY_TOL`` of the output range at batch 1 and
+   7 on real inputs, or the export fails and nothing is written under the final names;
+4. optionally evaluates the ONNX model on a held-out ``test`` dataset, so the card's metrics come
+   with the command that measured them;
+5. writes ``NAME.onnx`` and ``NAME.json`` (the card) atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from synth import __version__
+from synth.dataset import simulate_shard
+from synth.errors import ModelError
+from synth.io import atomic_open, atomic_write_json, sha256_file
+from synth.scene import Scene, parse_scene
+from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
+from tactile_learn.tasks import get_task
+from tactile_learn.train import load_run
+
+__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check"]
+
+OPSET = 18
+#: max |onnx - torch| allowed, as a fraction of the torch output's range
+PARITY_TOL = 1e-4
+
+
+def _probe_inputs(task_name: str, scene: Scene, n: int, seed: int = 12345) -> np.ndarray:
+    """Realistic inputs for the parity check: freshly simulated frames of the model's scene."""
+    task = get_task(task_name)
+    arrays = simulate_shard(scene, seed, 0, n)
+    return task.check_inputs(arrays[task.input_key], scene)
+
+
+def parity_check(net: torch.nn.Module, onnx_path: Path, inputs: np.ndarray, threads: int = 1) -> dict[str, float]:
+    """Max abs difference between torch and onnxruntime, at batch 1 and 7, relative to the range."""
+    import onnxruntime as ort
+
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = threads
+    session = ort.InferenceSession(str(onnx_path), sess_options=options, providers=["CPUExecutionProvider"])
+    name = session.get_inputs()[0].name
+    report: dict[str, float] = {}
+    for batch in (1, 7):
+        x = inputs[:batch]
+        with torch.inference_mode():
+            expected = net(torch.from_numpy(x)).numpy()
+        got = session.run(None, {name: x})[0]
+        span = float(expected.max() - expected.min()) or float(np.abs(expected).max()) or 1.0
+        report[f"max_abs_err_b{batch}"] = float(np.abs(got - expected).max())
+        report[f"rel_err_b{batch}"] = report[f"max_abs_err_b{batch}"] / span
+    report["tolerance"] = PARITY_TOL
+    return report
+
+
+def export(
+    run: str | Path,
+    out: str | Path,
+    *,
+    name: str | None = None,
+    test: str | Path | None = None,
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Export ``run`` to ``out`` (``.onnx``) plus its card; returns the card."""
+    out = Path(out)
+    if out.suffix != ".onnx":
+        raise ModelError(f"--out: {out} must end in .onnx")
+    saved = load_run(run)
+    task = get_task(saved["task"])
+    scene = parse_scene(saved["scene"], f"{run}/model.pt")
+    net = task.build_net(saved["size"], scene, saved["stats"])
+    net.load_state_dict(saved["state_dict"])
+    net.eval()
+    inputs = _probe_inputs(task.name, scene, 64)
+    example = torch.from_numpy(inputs[:2])
+    with torch.inference_mode():
+        out_shape = list(net(example).shape[1:])
+    metadata = {
+        "task": task.name,
+        "scene_digest": scene.digest,
+        "input_shape": list(task.input_shape(scene)),
+        "output_shape": out_shape,
+        "normalisation": saved["stats"],
+        "size": saved["size"],
+        "package_version": __version__,
+    }
+    with tempfile.TemporaryDirectory(dir=out.parent if out.parent.exists() else None) as tmp:
+        tmp_model = Path(tmp) / "model.onnx"
+        _torch_export(net, example, tmp_model, task.input_key, task.output_key, metadata)
+        parity = parity_check(net, tmp_model, inputs)
+        worst = max(parity["rel_err_b1"], parity["rel_err_b7"])
+        if worst > PARITY_TOL:
+            raise ModelError(f"parity check failed: onnxruntime differs from torch by {worst:.2e} of the output range (> {PARITY_TOL})")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_open(out, "wb") as handle:
+            handle.write(tmp_model.read_bytes())
+    result = saved["result"]
+    card: dict[str, Any] = {
+        "format": CARD_FORMAT,
+        "name": name or out.stem,
+        "task": task.name,
+        "model_file": out.name,
+        "model_sha256": sha256_file(out),
+        "model_bytes": out.stat().st_size,
+        "opset": OPSET,
+        "package_version": __version__,
+        "inputs": [{"name": task.input_key, "shape": ["batch", *metadata["input_shape"]], "dtype": "float32"}],
+        "outputs": [{"name": task.output_key, "shape": ["batch", *out_shape], "dtype": "float32"}],
+        "normalisation": saved["stats"],
+        "network": {"size": saved["size"], "parameters": int(sum(p.numel() for p in net.parameters()))},
+        "scene": scene.to_dict(),
+        "scene_digest": scene.digest,
+        "training": {
+            "data": result["train_data"],
+            "validation": result["val_data"],
+            "epochs_run": result["epochs_run"],
+            "best_epoch": result["best_epoch"],
+            "train_seconds": result["train_seconds"],
+            "threads": result["threads"],
+            "config": result["config"],
+        },
+        "parity": parity,
+        "metrics": {"validation": result["val_metrics"]},
+        "exported": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    # write the card first without held-out metrics, so the runtime can load the model to measure them
+    atomic_write_json(card_path(out), card)
+    if test is not None:
+        data = task.load_eval_data(test)
+        metrics = task.evaluate(OnnxEstimator(out), data)
+        card["metrics"]["heldout"] = {
+            "data": {"path": str(test), "seed": _dataset_seed(test), "n_frames": len(data)},
+            "values": metrics,
+            "command": command or _command_line(),
+        }
+        atomic_write_json(card_path(out), _json_ready(card))
+    return card
+
+
+def _dataset_seed(path: str | Path) -> int | None:
+    manifest = Path(path) / "manifest.json"
+    if manifest.is_file():
+        seed = json.loads(manifest.read_text()).get("seed")
+        return int(seed) if seed is not None else None
+    return None
+
+
+def _command_line() -> str:
+    return "tactile-learn " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def _json_ready(value: Any) -> Any:
+    from tactile_learn.cli.common import json_ready
+
+    return json_ready(value)
+
+
+def _torch_export(
+    net: torch.nn.Module, example: torch.Tensor, path: Path, input_name: str, output_name: str, metadata: dict[str, Any]
+) -> None:
+    import logging
+    import warnings
+
+    import onnx
+
+    logging.getLogger("torch.onnx").setLevel(logging.ERROR)
+    batch = torch.export.Dim("batch", min=1, max=1 << 20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        program = torch.onnx.export(
+            net,
+            (example,),
+            dynamo=True,
+            input_names=[input_name],
+            output_names=[output_name],
+            dynamic_shapes=({0: batch},),
+            opset_version=OPSET,
+            verbose=False,
+        )
+    if program is None:  # pragma: no cover - dynamo=True always returns a program
+        raise ModelError("the ONNX exporter returned nothing")
+    program.save(str(path))
+    model = onnx.load(str(path))
+    entry = model.metadata_props.add()
+    entry.key = METADATA_KEY
+    entry.value = json.dumps(metadata)
+    model.producer_name = "tactile-learn"
+    onnx.checker.check_model(model)
+    onnx.save(model, str(path))

@@ -1,0 +1,1 @@
+"""Torch networks, one module per task. Imported only by training and export."""

@@ -1,0 +1,163 @@
+"""Networks for the strip inverse: N+M readings -> N x M intersection map (kPa).
+
+Structure that matches the physics:
+
+1. :class:`StripLoads` inverts the readout in-graph (the same formula as the classical
+   estimators), so the network starts from each strip's load, not from volts.
+2. Row and column *encoders* (1-D convolutions along the strips' stacking direction) turn the
+   load profiles into per-strip features: a contact's footprint spreads over neighbouring strips,
+   and the profile's shape tells its size.
+3. The *pair* stage builds, for every crossing (i, j), the row feature i + column feature j and
+   three physics channels: the classical normalised product ``Lr_i Lc_j / T`` and the two loads
+   broadcast. Per-crossing 1 x 1 convolutions decide whether a crossing is real or a ghost: a real
+   contact's row and column loads agree in magnitude and footprint, a ghost's do not.
+   A global context vector (an MLP over all N+M loads) is added everywhere: which rows pair with
+   which columns is decided by magnitudes across the whole array.
+4. Axial blocks mix every crossing with the strongest features along its row and its column (its
+   competitors in a ghost configuration); a softplus keeps pressure non-negative.
+
+Normalisation lives in the module as buffers, so the exported ONNX graph maps raw volts to kPa.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from synth.scene import Scene
+from synth.sensors.strips import StripSensor
+
+__all__ = ["SIZES", "StripLoads", "StripNet", "build_strip_net", "input_stats", "strip_loss"]
+
+#: size -> (strip encoder channels, crossing channels, context width, axial blocks)
+SIZES: dict[str, tuple[int, int, int, int]] = {"small": (12, 16, 64, 2), "large": (24, 32, 128, 3)}
+
+
+def input_stats(readings: np.ndarray, pressure: np.ndarray, scene: Scene) -> dict[str, Any]:
+    """Normalisation from training data: the loads' scale and the pressure's RMS (kPa)."""
+    sensor = StripSensor(scene.sensor)
+    loads = sensor.invert_readings(readings.astype(np.float64))
+    load_scale = float(np.sqrt(np.mean(loads**2)) + 1e-6)
+    pressure_scale = float(np.sqrt(np.mean(pressure.astype(np.float64) ** 2)) + 1e-6)
+    return {"load_scale": load_scale, "pressure_scale_kpa": pressure_scale}
+
+
+class StripLoads(nn.Module):
+    """Readings (V) -> per-strip loads, the readout inverse of ``StripSensor.invert_readings``."""
+
+    def __init__(self, scene: Scene) -> None:
+        super().__init__()
+        c = scene.sensor.readout
+        piezo = scene.sensor.piezo
+        g = scene.sensor.geometry
+        sensor = StripSensor(scene.sensor)
+        self.offset = float(c.offset_v)
+        self.gain = float(c.amplifier_gain)
+        self.v_unloaded = float(sensor.readout.v_unloaded)
+        self.supply = float(c.supply_v)
+        self.reference = float(c.reference_ohm)
+        self.r0 = float(piezo.strip_resistance_ohm)
+        segments = np.concatenate([np.full(g.n_rows, g.n_cols), np.full(g.n_cols, g.n_rows)]).astype(np.float32)
+        self.register_buffer("segments", torch.from_numpy(segments))
+
+    def forward(self, volts: torch.Tensor) -> torch.Tensor:
+        divider = self.v_unloaded + (volts - self.offset) / self.gain
+        # same clamps as the numpy inverse: a divider voltage outside (0, supply) is not physical
+        divider = divider.clamp(1e-9 * self.supply, self.supply * (1 - 1e-9))
+        resistance = self.reference * (self.supply / divider - 1.0)
+        return (1.0 - resistance / self.r0).clamp(0.0, 1.0) * self.segments
+
+
+class _Axial(nn.Module):
+    """Mixes every crossing with the strongest feature along its row and along its column.
+
+    A ghost at (i1, j2) competes with the real contacts (i1, j1) and (i2, j2), which share its row
+    and its column: max-pooling along both axes lets each crossing see its competitors however far
+    apart they are, at the cost of a 1 x 1 convolution (a 3 x 3 stack would need many layers).
+    """
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.mix = nn.Conv2d(3 * channels, channels, 1)
+        self.act = nn.ReLU()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        row_max = x.amax(dim=3, keepdim=True).expand_as(x)
+        col_max = x.amax(dim=2, keepdim=True).expand_as(x)
+        return self.act(x + self.mix(torch.cat([x, row_max, col_max], dim=1)))
+
+
+def _encoder(channels: int) -> nn.Sequential:
+    """Per-strip features from the load profile around each strip (receptive field 9 strips)."""
+    return nn.Sequential(
+        nn.Conv1d(1, channels, 5, padding=2),
+        nn.ReLU(),
+        nn.Conv1d(channels, channels, 5, padding=2),
+        nn.ReLU(),
+    )
+
+
+class StripNet(nn.Module):
+    """Readings -> map, with crossing features built by broadcast sums (cheap: no N x M convolutions
+    before the pair stage, and no 3 x 3 convolutions at all)."""
+
+    def __init__(self, scene: Scene, stats: dict[str, Any], size: str) -> None:
+        super().__init__()
+        enc, hidden, context, axial = SIZES[size]
+        g = scene.sensor.geometry
+        self.n_rows, self.n_cols = g.n_rows, g.n_cols
+        self.loads = StripLoads(scene)
+        self.load_scale = float(stats["load_scale"])
+        self.pressure_scale = float(stats["pressure_scale_kpa"])
+        self.row_encoder = _encoder(enc)
+        self.col_encoder = _encoder(enc)
+        # global context: every strip's load at once (magnitudes decide which rows pair with which columns)
+        self.context = nn.Sequential(nn.Linear(g.n_rows + g.n_cols, context), nn.ReLU(), nn.Linear(context, hidden))
+        self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
+        self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
+        self.product_proj = nn.Conv2d(1, hidden, 1, bias=False)
+        self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(axial)])
+        self.head = nn.Conv2d(hidden, 1, 1)
+
+    def forward(self, readings: torch.Tensor) -> torch.Tensor:
+        loads = self.loads(readings) / self.load_scale
+        rows = loads[:, : self.n_rows]
+        cols = loads[:, self.n_rows :]
+        row_feat = torch.cat([self.row_encoder(rows.unsqueeze(1)), rows.unsqueeze(1)], dim=1)  # (B, C+1, N)
+        col_feat = torch.cat([self.col_encoder(cols.unsqueeze(1)), cols.unsqueeze(1)], dim=1)  # (B, C+1, M)
+        total = 0.5 * (rows.sum(dim=1) + cols.sum(dim=1)).clamp_min(1e-3)
+        product = (rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]).unsqueeze(1)  # classical estimate
+        x = (
+            self.row_proj(row_feat).unsqueeze(3)
+            + self.col_proj(col_feat).unsqueeze(2)
+            + self.context(loads)[:, :, None, None]
+            + self.product_proj(product)
+        )
+        x = self.blocks(torch.relu(x))
+        out = nn.functional.softplus(self.head(x).squeeze(1), beta=4.0)
+        return out * self.pressure_scale
+
+
+def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> StripNet:
+    if size not in SIZES:
+        raise ValueError(f"size {size!r} is not one of {', '.join(SIZES)}")
+    return StripNet(scene, stats, size)
+
+
+def strip_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """MSE in units of the pressure scale, plus (1 - Pearson r) per frame: the metric users read.
+
+    Frames with an all-zero truth contribute only their MSE (their r is undefined).
+    """
+    scale = target.pow(2).mean().sqrt().clamp_min(1e-6)
+    mse = ((pred - target) / scale).pow(2).mean()
+    p = pred.flatten(1) - pred.flatten(1).mean(dim=1, keepdim=True)
+    t = target.flatten(1) - target.flatten(1).mean(dim=1, keepdim=True)
+    denom = (p.pow(2).sum(dim=1) * t.pow(2).sum(dim=1)).clamp_min(1e-12).sqrt()
+    valid = t.pow(2).sum(dim=1) > 1e-12
+    r = (p * t).sum(dim=1) / denom
+    corr = (1 - r[valid]).mean() if bool(valid.any()) else pred.sum() * 0
+    return mse + corr

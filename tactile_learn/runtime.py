@@ -1,0 +1,144 @@
+"""Deployment runtime: shipped ONNX models under onnxruntime, with numpy only (no torch).
+
+A model is a pair ``NAME.onnx`` + ``NAME.json`` (the model card). Loading checks that they belong
+together (the card's SHA-256 of the ONNX file, the scene digest embedded in the ONNX metadata, the
+input and output names and shapes) and refuses a corrupt, truncated or mismatched pair with a
+:class:`~synth.errors.ModelError`. ``predict`` validates its input against the card's scene with the
+same checks as the classical estimators (shape, dtype, NaN/inf, negative or saturated readings).
+
+    from tactile_learn.runtime import OnnxEstimator
+    model = OnnxEstimator("models/strips16.onnx", threads=1)
+    maps = model.predict(readings)          # (B, 32) V -> (B, 16, 16) kPa
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from synth.errors import ConfigError, ModelError
+from synth.io import sha256_file
+from synth.scene import Scene, parse_scene
+from tactile_learn.estimators.base import Estimator
+
+__all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "card_path", "read_card"]
+
+CARD_FORMAT = 1
+#: key of the JSON blob that export writes into the ONNX graph's metadata
+METADATA_KEY = "tactile_learn"
+
+
+def card_path(model_path: str | Path) -> Path:
+    return Path(model_path).with_suffix(".json")
+
+
+def read_card(model_path: str | Path) -> dict[str, Any]:
+    """The model card beside ``model_path``, checked for the fields the runtime relies on."""
+    path = card_path(model_path)
+    if not path.is_file():
+        raise ModelError(f"{path}: model card not found (every .onnx model needs its .json card beside it)")
+    try:
+        card: dict[str, Any] = json.loads(path.read_text())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{path}: corrupt model card ({exc})") from None
+    missing = [k for k in ("format", "task", "scene", "scene_digest", "inputs", "outputs", "model_sha256") if k not in card]
+    if missing:
+        raise ModelError(f"{path}: model card lacks {', '.join(missing)}")
+    if card["format"] != CARD_FORMAT:
+        raise ModelError(f"{path}: model card format {card['format']!r} is not {CARD_FORMAT}")
+    return card
+
+
+class OnnxEstimator(Estimator):
+    """A learned estimator run by onnxruntime; task-agnostic (the card names the task)."""
+
+    kind = "learned"
+    backend = "onnxruntime"
+
+    def __init__(self, path: str | Path, threads: int = 1, verify: bool = True) -> None:
+        self.path = path
+        self.threads = threads
+        self.verify = verify
+
+    @property  # type: ignore[override]
+    def name(self) -> str:
+        return Path(self.path).name
+
+    @cached_property
+    def card_(self) -> dict[str, Any]:
+        model = Path(self.path)
+        if not model.is_file():
+            raise ModelError(f"{model}: model file not found")
+        if model.stat().st_size == 0:
+            raise ModelError(f"{model}: model file is empty")
+        card = read_card(model)
+        if self.verify and sha256_file(model) != card["model_sha256"]:
+            raise ModelError(f"{model}: checksum differs from its card's: the file is corrupt or belongs to another card")
+        return card
+
+    @cached_property
+    def scene_(self) -> Scene:
+        try:
+            scene = parse_scene(self.card_["scene"], str(card_path(self.path)))
+        except ConfigError as exc:
+            raise ModelError(f"{card_path(self.path)}: the card's scene is invalid ({exc})") from None
+        if scene.digest != self.card_["scene_digest"]:
+            raise ModelError(f"{card_path(self.path)}: the card's scene does not match its scene_digest")
+        return scene
+
+    @property
+    def task_name(self) -> str:
+        return str(self.card_["task"])
+
+    @cached_property
+    def session_(self) -> Any:
+        try:
+            import onnxruntime as ort
+        except ImportError:
+            raise ModelError("onnxruntime is not installed: pip install 'tactile-learn[runtime]'") from None
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = self.threads
+        options.inter_op_num_threads = 1
+        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        card = self.card_
+        try:
+            session = ort.InferenceSession(str(self.path), sess_options=options, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # onnxruntime raises its own untyped errors for corrupt graphs
+            raise ModelError(f"{self.path}: onnxruntime cannot load the model ({str(exc).splitlines()[0]})") from None
+        meta = session.get_modelmeta().custom_metadata_map.get(METADATA_KEY)
+        if meta is None:
+            raise ModelError(f"{self.path}: the ONNX graph carries no tactile-learn metadata")
+        try:
+            embedded = json.loads(meta)
+        except ValueError:
+            raise ModelError(f"{self.path}: the ONNX graph's tactile-learn metadata is corrupt") from None
+        if embedded.get("scene_digest") != card["scene_digest"] or embedded.get("task") != card["task"]:
+            raise ModelError(f"{self.path}: the model was built for scene {embedded.get('scene_digest')}, its card says {card['scene_digest']}")
+        inputs = session.get_inputs()
+        outputs = session.get_outputs()
+        if [i.name for i in inputs] != [i["name"] for i in card["inputs"]]:
+            raise ModelError(f"{self.path}: the graph's inputs {[i.name for i in inputs]} do not match the card's")
+        if [o.name for o in outputs] != [o["name"] for o in card["outputs"]]:
+            raise ModelError(f"{self.path}: the graph's outputs {[o.name for o in outputs]} do not match the card's")
+        if list(inputs[0].shape[1:]) != list(card["inputs"][0]["shape"][1:]):
+            raise ModelError(f"{self.path}: the graph's input shape {inputs[0].shape} does not match the card's")
+        return session
+
+    def fit(self, X: np.ndarray, y: Any = None) -> OnnxEstimator:  # noqa: N803
+        return self
+
+    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+        from tactile_learn.tasks import get_task
+
+        session = self.session_
+        x = get_task(self.task_name).check_inputs(X, self.scene_)
+        out_shape = self.card_["outputs"][0]["shape"][1:]
+        if len(x) == 0:
+            return np.zeros((0, *out_shape), dtype=np.float32)
+        result = session.run(None, {self.card_["inputs"][0]["name"]: x})[0]
+        return np.asarray(result, dtype=np.float32)

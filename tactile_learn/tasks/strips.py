@@ -1,0 +1,148 @@
+"""The soft strip array task: N+M strip readings -> N x M intersection pressure map (kPa)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from synth.dataset import Dataset, load_arrays
+from synth.errors import DataError
+from synth.scene import Scene, load_scene
+from synth.sensors.strips_config import StripsConfig
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.metrics import strip_map_metrics
+from tactile_learn.tasks.base import EvalData, Task
+from tactile_learn.validation import as_batch
+
+if TYPE_CHECKING:
+    import torch
+
+__all__ = ["StripsTask", "frame_groups"]
+
+
+def frame_groups(extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, np.ndarray]:
+    """Boolean masks of the ambiguity groups, from a dataset's latent contact list.
+
+    - ``one_contact``: frames with exactly one contact;
+    - ``two_distinct``: two contacts whose rows and columns can be paired: their forces or sizes
+      differ by more than 15 %, or they share a row or column band (no ghost);
+    - ``two_twins``: two near-identical contacts on distinct rows and columns: the two pairings give
+      the same readings (to within noise), so no method can tell which diagonal is real.
+    """
+    n = extra["latent_n_contacts"].astype(int)
+    groups = {"one_contact": n == 1}
+    if extra["latent_force_n"].shape[1] < 2:
+        groups["two_distinct"] = np.zeros_like(groups["one_contact"])
+        groups["two_twins"] = np.zeros_like(groups["one_contact"])
+        return groups
+    force = extra["latent_force_n"][:, :2].astype(np.float64)
+    radius = extra["latent_radius_mm"][:, :2].astype(np.float64)
+    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
+    rel_f = np.abs(force[:, 0] - force[:, 1]) / np.maximum(force.max(axis=1), 1e-12)
+    rel_r = np.abs(radius[:, 0] - radius[:, 1]) / np.maximum(radius.max(axis=1), 1e-12)
+    similar = (rel_f < 0.15) & (rel_r < 0.15)
+    apart = (np.abs(xy[:, 0, 0] - xy[:, 1, 0]) > pitch_mm) & (np.abs(xy[:, 0, 1] - xy[:, 1, 1]) > pitch_mm)
+    two = n == 2
+    groups["two_twins"] = two & similar & apart
+    groups["two_distinct"] = two & ~groups["two_twins"]
+    return groups
+
+
+class StripsTask(Task):
+    name = "strips"
+    default_scene = "strips16"
+    input_key = "readings"
+    output_key = "pressure"
+    truth_keys = ("pressure",)
+    primary_metric = ("pearson_r_mean", True)
+    net_sizes = ("small", "large")
+
+    def input_shape(self, scene: Scene) -> tuple[int, ...]:
+        g = scene.sensor.geometry
+        return (g.n_rows + g.n_cols,)
+
+    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
+        readout = scene.sensor.readout
+        return as_batch(
+            inputs,
+            self.input_shape(scene),
+            name="readings",
+            upper=readout.full_scale_v,
+            upper_name="the ADC's full scale",
+        )
+
+    def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
+        from tactile_learn.estimators.classical.intersection import IntersectionEstimator
+        from tactile_learn.estimators.classical.projection import ProjectionEstimator
+
+        return {"intersection": IntersectionEstimator, "projection": ProjectionEstimator}
+
+    def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
+        path = Path(source)
+        if path.is_dir():
+            dataset = Dataset(path)
+            if dataset.scene.task != self.name:
+                raise DataError(f"{path}: dataset is for task {dataset.scene.task!r}, not {self.name!r}")
+            scene = scene or dataset.scene
+            arrays = dataset.arrays()
+        else:
+            arrays = load_arrays(path)
+            scene = scene or load_scene(self.default_scene)
+        if not isinstance(scene.sensor, StripsConfig):
+            raise DataError(f"scene {scene.name!r} is not a strip-array scene")
+        for key in ("readings", "pressure"):
+            if key not in arrays:
+                raise DataError(f"{path}: needs arrays 'readings' (B, N+M) and 'pressure' (B, N, M); missing {key!r}")
+        g = scene.sensor.geometry
+        readings, pressure = arrays["readings"], arrays["pressure"]
+        if readings.ndim != 2 or readings.shape[1] != g.n_rows + g.n_cols:
+            raise DataError(
+                f"{path}: readings have shape {readings.shape}, scene {scene.name!r} has "
+                f"{g.n_rows}+{g.n_cols} strips (pass --scene for another sensor)"
+            )
+        if pressure.shape != (len(readings), g.n_rows, g.n_cols):
+            raise DataError(f"{path}: pressure has shape {pressure.shape}, expected {(len(readings), g.n_rows, g.n_cols)}")
+        extra = {k: v for k, v in arrays.items() if k.startswith("latent_")}
+        return EvalData(
+            inputs=readings, truth={"pressure": pressure}, scene=scene, extra=extra, source=str(path)
+        )
+
+    def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
+        pitch = data.scene.sensor.geometry.pitch_mm
+        result = strip_map_metrics(pred, data.truth["pressure"], pitch)
+        if "latent_n_contacts" in data.extra and len(data):
+            by_group = {}
+            for group, mask in frame_groups(data.extra, pitch).items():
+                if mask.any():
+                    sub = strip_map_metrics(pred[mask], data.truth["pressure"][mask], pitch)
+                    by_group[group] = {
+                        "n_frames": int(mask.sum()),
+                        **{k: sub[k] for k in ("pearson_r_mean", "pearson_r_median", "nrmse", "peak_err_mm_median")},
+                    }
+            result["by_group"] = by_group
+        return result
+
+    # ---- learning --------------------------------------------------------------------------------
+
+    def fit_stats(self, arrays: dict[str, np.ndarray], scene: Scene) -> dict[str, Any]:
+        from tactile_learn.nets.strips import input_stats
+
+        return input_stats(arrays["readings"], arrays["pressure"], scene)
+
+    def training_batch(
+        self, arrays: dict[str, np.ndarray], scene: Scene, rng: np.random.Generator
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        return arrays["readings"].astype(np.float32), {"pressure": arrays["pressure"].astype(np.float32)}
+
+    def build_net(self, size: str, scene: Scene, stats: dict[str, Any]) -> torch.nn.Module:
+        from tactile_learn.nets.strips import build_strip_net
+
+        return build_strip_net(size, scene, stats)
+
+    def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
+        from tactile_learn.nets.strips import strip_loss
+
+        return strip_loss(output, targets["pressure"])

@@ -1,0 +1,275 @@
+"""The one training loop for every task (CPU, reproducible, resumable).
+
+- Data streams from the dataset's memory-mapped shards, one shard in memory at a time.
+- Epoch ``e`` shuffles and augments with ``SeedSequence(seed, spawn_key=(e,))``; the torch RNG
+  state is checkpointed; so a run killed at any point and resumed with ``--resume`` ends with the
+  same weights as an uninterrupted run with the same seed (same machine and thread count).
+- Validation each epoch with the task's own metrics; the best epoch (task.primary_metric) is kept;
+  early stopping after ``patience`` epochs without improvement.
+- ``RUN/checkpoint.pt`` (everything to resume) is written atomically every epoch; ``RUN/model.pt``
+  (best weights + what export needs), ``RUN/metrics.json`` and ``RUN/loss.png`` at the end.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from synth import __version__
+from synth.dataset import Dataset
+from synth.errors import ConfigError, DataError
+from synth.io import atomic_open, atomic_write_json
+from tactile_learn.tasks import get_task
+from tactile_learn.tasks.base import EvalData
+from tactile_learn.torch_estimator import TorchEstimator
+
+__all__ = ["TrainConfig", "load_run", "train"]
+
+CHECKPOINT = "checkpoint.pt"
+MODEL = "model.pt"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    task: str
+    data: str
+    out: str
+    val: str | None = None
+    size: str = ""
+    epochs: int = 0  # 0: the task's default
+    batch_size: int = 256
+    lr: float = 3e-3
+    weight_decay: float = 1e-4
+    seed: int = 0
+    patience: int = 6
+    val_limit: int = 4000
+    threads: int = 0  # 0: torch's default
+    max_batches: int = 0  # per epoch; 0: the whole dataset (tests use a few)
+
+    def validate(self) -> None:
+        task = get_task(self.task)
+        if self.size and self.size not in task.net_sizes:
+            raise ConfigError(f"--size: {self.size!r} is not one of {', '.join(task.net_sizes)}")
+        for name in ("batch_size", "patience", "val_limit"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"--{name.replace('_', '-')}: must be positive")
+        if not (0 < self.lr < 1):
+            raise ConfigError(f"--lr: {self.lr} is out of range (0, 1)")
+        if self.epochs < 0 or self.seed < 0 or self.threads < 0 or self.max_batches < 0:
+            raise ConfigError("--epochs, --seed, --threads and --max-batches must be non-negative")
+
+
+def _save_torch(path: Path, obj: Any) -> None:
+    buffer = io.BytesIO()
+    torch.save(obj, buffer)
+    with atomic_open(path, "wb") as handle:
+        handle.write(buffer.getvalue())
+
+
+def _load_torch(path: Path) -> Any:
+    try:
+        return torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as exc:  # torch raises assorted errors for truncated or foreign files
+        raise DataError(f"{path}: unreadable checkpoint ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+
+
+def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
+    task = get_task(config.task)
+    if config.val:
+        data = task.load_eval_data(config.val)
+        if data.scene.digest != train_set.scene.digest:
+            # a validation set of another scene would early-stop on the wrong physics
+            raise DataError(f"{config.val}: validation scene {data.scene.name!r} differs from the training scene {train_set.scene.name!r}")
+    else:
+        raise ConfigError("--val: a validation dataset is required (generate one with another --seed)")
+    return data.subset(slice(0, config.val_limit))
+
+
+def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # plotting is an optional extra
+        return False
+    epochs = [h["epoch"] for h in history]
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
+    ax[0].plot(epochs, [h["train_loss"] for h in history], marker="o")
+    ax[0].set(xlabel="epoch", ylabel="training loss", yscale="log", title="loss")
+    ax[1].plot(epochs, [h["val"][metric] for h in history], marker="o", color="C1")
+    ax[1].set(xlabel="epoch", ylabel=metric, title=f"validation {metric}")
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100)
+    plt.close(fig)
+    with atomic_open(path, "wb") as handle:
+        handle.write(buffer.getvalue())
+    return True
+
+
+def train(config: TrainConfig, resume: bool = False, progress: bool | None = None) -> dict[str, Any]:
+    """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``)."""
+    from tactile_learn.cli.common import progress_bar
+
+    config.validate()
+    task = get_task(config.task)
+    size = config.size or task.net_sizes[0]
+    epochs = config.epochs or task.default_epochs
+    out = Path(config.out)
+    if config.threads:
+        torch.set_num_threads(config.threads)
+    train_set = Dataset(config.data)
+    scene = train_set.scene
+    if scene.task != config.task:
+        raise DataError(f"{config.data}: dataset is for task {scene.task!r}, not {config.task!r}")
+    missing = [k for k in task.train_keys if k not in train_set.keys]
+    if missing:
+        raise DataError(f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)")
+    val = _val_data(config, train_set)
+    ckpt_path = out / CHECKPOINT
+    if out.exists() and any(out.iterdir()) and not resume:
+        raise DataError(f"{out} already holds a run: pass --resume to continue it, or choose another --out")
+    if resume and not ckpt_path.is_file():
+        raise DataError(f"{ckpt_path}: nothing to resume")
+    out.mkdir(parents=True, exist_ok=True)
+
+    torch.manual_seed(config.seed)
+    stats = task.fit_stats(train_set.arrays(list(task.train_keys), limit=20000), scene)
+    net = task.build_net(size, scene, stats)
+    optimizer = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
+    if config.max_batches:
+        batches_per_epoch = min(batches_per_epoch, config.max_batches)
+    if batches_per_epoch < 1:
+        raise DataError(f"{config.data}: fewer samples than one batch of {config.batch_size}")
+    scheduler = torch.optim.lr_scheduler.OneCycleLR(
+        optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
+    )
+    metric, higher_better = task.primary_metric
+    state: dict[str, Any] = {"epoch": 0, "best": None, "best_epoch": 0, "best_state": None, "history": [], "seconds": 0.0}
+    if resume:
+        ckpt = _load_torch(ckpt_path)
+        if ckpt.get("config") != asdict(config):
+            raise ConfigError(f"{ckpt_path}: the run was started with other settings; resume it with the same command")
+        net.load_state_dict(ckpt["net"])
+        optimizer.load_state_dict(ckpt["optimizer"])
+        scheduler.load_state_dict(ckpt["scheduler"])
+        torch.set_rng_state(ckpt["torch_rng"])
+        state = ckpt["state"]
+
+    started = time.perf_counter() - state["seconds"]
+    stale = state["epoch"] - state["best_epoch"]
+    while state["epoch"] < epochs and stale < config.patience:
+        epoch = state["epoch"] + 1
+        rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
+        net.train()
+        losses = []
+        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
+            for i, arrays in enumerate(train_set.iter_batches(list(task.train_keys), config.batch_size, rng=rng, drop_last=True)):
+                if i >= batches_per_epoch:
+                    break
+                x, targets = task.training_batch(arrays, scene, rng)
+                output = task.train_forward(net, torch.from_numpy(x))
+                loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
+                if not torch.isfinite(loss):
+                    raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+                optimizer.step()
+                scheduler.step()
+                losses.append(loss.item())
+                bar.update()
+                if i % 20 == 0:
+                    bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
+        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val)
+        value = float(val_metrics[metric])
+        improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
+        if improved:
+            state["best"], state["best_epoch"] = value, epoch
+            state["best_state"] = {k: v.detach().clone() for k, v in net.state_dict().items()}
+        state["epoch"] = epoch
+        state["seconds"] = time.perf_counter() - started
+        state["history"].append(
+            {"epoch": epoch, "train_loss": float(np.mean(losses)), "val": _scalars(val_metrics), "seconds": state["seconds"]}
+        )
+        _save_torch(
+            ckpt_path,
+            {
+                "config": asdict(config),
+                "net": net.state_dict(),
+                "optimizer": optimizer.state_dict(),
+                "scheduler": scheduler.state_dict(),
+                "torch_rng": torch.get_rng_state(),
+                "state": state,
+            },
+        )
+        stale = state["epoch"] - state["best_epoch"]
+        if progress is not False:
+            print(f"epoch {epoch}: loss {np.mean(losses):.4g}, val {metric} {value:.4f}{' (best)' if improved else ''}", flush=True)
+
+    net.load_state_dict(state["best_state"])
+    final = _scalars(task.evaluate(TorchEstimator(net, config.task, scene), val))
+    result = {
+        "task": config.task,
+        "size": size,
+        "scene": scene.name,
+        "scene_digest": scene.digest,
+        "train_data": {"path": str(config.data), "seed": train_set.seed, "n": len(train_set)},
+        "val_data": {"path": str(config.val), "n": len(val)},
+        "epochs_run": state["epoch"],
+        "best_epoch": state["best_epoch"],
+        "train_seconds": state["seconds"],
+        "threads": torch.get_num_threads(),
+        "val_metrics": final,
+        "history": state["history"],
+        "config": asdict(config),
+    }
+    _save_torch(
+        out / MODEL,
+        {
+            "task": config.task,
+            "size": size,
+            "scene": scene.to_dict(),
+            "stats": stats,
+            "state_dict": state["best_state"],
+            "result": result,
+            "version": __version__,
+        },
+    )
+    atomic_write_json(out / "metrics.json", _jsonable(result))
+    _loss_plot(state["history"], out / "loss.png", metric)
+    return result
+
+
+def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in metrics.items() if isinstance(v, (int, float, dict))}
+
+
+def _jsonable(value: Any) -> Any:
+    from tactile_learn.cli.common import json_ready
+
+    return json_ready(json.loads(json.dumps(value, default=str)))
+
+
+def load_run(run: str | Path) -> dict[str, Any]:
+    """The best model of a finished run (``RUN/model.pt``)."""
+    path = Path(run) / MODEL
+    if not path.is_file():
+        hint = " (training has not finished: rerun it with --resume)" if (Path(run) / CHECKPOINT).exists() else ""
+        raise DataError(f"{path}: no trained model{hint}")
+    data: dict[str, Any] = _load_torch(path)
+    return data
+
+
+def default_threads() -> int:
+    return max(1, min(2, os.cpu_count() or 1))
