@@ -12,6 +12,7 @@ Supported field types: ``bool``, ``int``, ``float``, ``str``, ``Literal[...]``, 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import types
 import typing
@@ -113,7 +114,7 @@ def _convert(value: Any, tp: Any, meta: Mapping[str, Any], path: str) -> Any:
         items = tuple(
             _convert(v, t, meta, f"{path}[{i}]") for i, (v, t) in enumerate(zip(value, item_types, strict=True))
         )
-        if meta.get("ordered") and any(b < a for a, b in zip(items, items[1:], strict=False)):
+        if meta.get("ordered") and any(b < a for a, b in itertools.pairwise(items)):
             raise ConfigError(f"{path}: values must be non-decreasing ([min, max]), got {list(items)}")
         return items
     if isinstance(tp, type) and dataclasses.is_dataclass(tp):

@@ -61,7 +61,9 @@ def _request(scene: Scene, n: int, seed: int, shard_size: int) -> dict[str, Any]
         "n": n,
         "shard_size": shard_size,
         "chunk": CHUNK,
-        "arrays": {k: {"shape": list(s.shape), "dtype": s.dtype, "description": s.description} for k, s in specs.items()},
+        "arrays": {
+            k: {"shape": list(s.shape), "dtype": s.dtype, "description": s.description} for k, s in specs.items()
+        },
     }
 
 
@@ -130,7 +132,9 @@ def _prepare_folder(folder: Path, request: dict[str, Any], overwrite: bool) -> N
                 "pass --overwrite to replace it, or choose another --out"
             )
     elif any(folder.iterdir()) and not overwrite:
-        raise DataError(f"{folder} is not empty and is not a tactile-learn dataset; pass --overwrite or choose another --out")
+        raise DataError(
+            f"{folder} is not empty and is not a tactile-learn dataset; pass --overwrite or choose another --out"
+        )
     if overwrite:
         for path in _owned_files(folder):
             path.unlink()
@@ -242,7 +246,9 @@ class Dataset:
                 if not file.is_file():
                     raise DataError(f"{file}: shard file is missing")
                 if file.stat().st_size != info["bytes"]:
-                    raise DataError(f"{file}: shard file has {file.stat().st_size} bytes, manifest says {info['bytes']}")
+                    raise DataError(
+                        f"{file}: shard file has {file.stat().st_size} bytes, manifest says {info['bytes']}"
+                    )
                 if verify and sha256_file(file) != info["sha256"]:
                     raise DataError(f"{file}: checksum mismatch, the shard is corrupt (regenerate it)")
         self._maps: dict[tuple[int, str], np.ndarray] = {}

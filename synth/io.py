@@ -17,7 +17,7 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["atomic_open", "atomic_save_npy", "atomic_write_json", "atomic_write_text", "sha256_file"]
+__all__ = ["atomic_open", "atomic_save_npy", "atomic_save_npz", "atomic_write_json", "atomic_write_text", "sha256_file"]
 
 
 @contextlib.contextmanager
@@ -31,7 +31,7 @@ def atomic_open(path: str | Path, mode: str = "wb") -> Iterator[IO[Any]]:
             yield handle
             handle.flush()
             os.fsync(handle.fileno())
-        os.replace(tmp, final)
+        tmp.replace(final)
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -50,6 +50,13 @@ def atomic_save_npy(path: str | Path, array: np.ndarray) -> None:
     """Save ``array`` as ``.npy`` (memory-mappable) atomically."""
     with atomic_open(path, "wb") as handle:
         np.save(handle, np.ascontiguousarray(array), allow_pickle=False)
+
+
+def atomic_save_npz(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    """Save named arrays as an (uncompressed) ``.npz`` atomically."""
+    named: dict[str, Any] = dict(arrays)
+    with atomic_open(path, "wb") as handle:
+        np.savez(handle, **named)
 
 
 def sha256_file(path: str | Path, chunk: int = 1 << 20) -> str:

@@ -82,7 +82,12 @@ def separable_kernel(h: float, z: float, half_extent: int, rank_tol: float = 1e-
             break
     error = float(np.sqrt(energy[rank] / total)) if rank < len(s) else 0.0
     root = np.sqrt(s[:rank])
-    return SeparableKernel(rows=(u[:, :rank] * root).T.copy(), cols=(vt[:rank] * root[:, None]).copy(), half=half_extent, rel_error=error)
+    return SeparableKernel(
+        rows=(u[:, :rank] * root).T.copy(),
+        cols=(vt[:rank] * root[:, None]).copy(),
+        half=half_extent,
+        rel_error=error,
+    )
 
 
 def patch_operator(weights: np.ndarray, profile: np.ndarray, positions: np.ndarray, half: int) -> np.ndarray:

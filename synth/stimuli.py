@@ -64,9 +64,11 @@ def contact_radius_mm(force_n: np.ndarray | float, radius_mm: np.ndarray | float
     return np.cbrt(3.0 * np.asarray(force_n, dtype=np.float64) * np.asarray(radius_mm) / (4.0 * e_star_mpa))
 
 
-def edge_half_width_mm(force_n: np.ndarray, radius_mm: np.ndarray, length_mm: np.ndarray, e_star_mpa: float) -> np.ndarray:
+def edge_half_width_mm(
+    force_n: np.ndarray | float, radius_mm: np.ndarray | float, length_mm: np.ndarray | float, e_star_mpa: float
+) -> np.ndarray:
     """2-D Hertz half-width of a cylinder edge pressed with ``force_n / length_mm`` per mm."""
-    per_length = force_n / length_mm
+    per_length = np.asarray(force_n, dtype=np.float64) / length_mm
     return np.sqrt(4.0 * per_length * radius_mm / (np.pi * e_star_mpa))
 
 
@@ -90,7 +92,9 @@ def window_size(
     elif kind == "block":
         extent = float(np.hypot(width_mm, length_mm))
     elif kind == "edge":
-        half = float(edge_half_width_mm(np.float64(force_n), np.float64(radius_mm), np.float64(min_length_mm), e_star_mpa))
+        half = float(
+            edge_half_width_mm(np.float64(force_n), np.float64(radius_mm), np.float64(min_length_mm), e_star_mpa)
+        )
         extent = float(np.hypot(length_mm, 2 * half))
     else:
         raise ValueError(f"unknown stimulus kind {kind!r}")
@@ -153,7 +157,9 @@ def rasterize(kind: str, contacts: ContactBatch, h: float, size: int, e_star_mpa
     return Windows(y0=y0, x0=x0, values=values)
 
 
-def _point_load(values: np.ndarray, which: np.ndarray, c: ContactBatch, h: float, y0: np.ndarray, x0: np.ndarray) -> None:
+def _point_load(
+    values: np.ndarray, which: np.ndarray, c: ContactBatch, h: float, y0: np.ndarray, x0: np.ndarray
+) -> None:
     """Share each selected contact's force bilinearly among its four nearest cell centres."""
     idx = np.flatnonzero(which)
     fy = c.y_mm[idx] / h - 0.5 - y0[idx]  # position in window cells, relative to cell centres

@@ -106,7 +106,10 @@ def export(
         parity = parity_check(net, tmp_model, inputs)
         worst = max(parity["rel_err_b1"], parity["rel_err_b7"])
         if worst > PARITY_TOL:
-            raise ModelError(f"parity check failed: onnxruntime differs from torch by {worst:.2e} of the output range (> {PARITY_TOL})")
+            raise ModelError(
+                f"parity check failed: onnxruntime differs from torch by {worst:.2e} of the output range "
+                f"(> {PARITY_TOL})"
+            )
         out.parent.mkdir(parents=True, exist_ok=True)
         with atomic_open(out, "wb") as handle:
             handle.write(tmp_model.read_bytes())
@@ -172,7 +175,12 @@ def _json_ready(value: Any) -> Any:
 
 
 def _torch_export(
-    net: torch.nn.Module, example: torch.Tensor, path: Path, input_name: str, output_name: str, metadata: dict[str, Any]
+    net: torch.nn.Module,
+    example: torch.Tensor,
+    path: Path,
+    input_name: str,
+    output_name: str,
+    metadata: dict[str, Any],
 ) -> None:
     import logging
     import warnings

@@ -61,7 +61,10 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     if path.suffix != ".onnx":
         shipped = shipped_models(task)
         if spec not in shipped:
-            raise ConfigError(f"--method: {spec!r} is not a method of task {task!r} (available: {', '.join(available_methods(task))}, or a path to a .onnx model)")
+            raise ConfigError(
+                f"--method: {spec!r} is not a method of task {task!r} "
+                f"(available: {', '.join(available_methods(task))}, or a path to a .onnx model)"
+            )
         path = shipped[spec]
     if not path.is_file():
         raise ModelError(f"--method: model file {path} not found")
@@ -70,4 +73,8 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     model = OnnxEstimator(path, threads=threads)
     if model.task_name != task:
         raise ModelError(f"{path}: the model is for task {model.task_name!r}, not {task!r}")
+    if scene.digest != model.card_scene_.digest:
+        # another scene of the same sensor (e.g. a calibrated copy): inputs are checked against it
+        model = OnnxEstimator(path, threads=threads, scene=scene)
+        model.scene_  # noqa: B018 - fails now, with a clear error, if the shapes do not match
     return model

@@ -45,7 +45,9 @@ def read_card(model_path: str | Path) -> dict[str, Any]:
         card: dict[str, Any] = json.loads(path.read_text())
     except (ValueError, UnicodeDecodeError) as exc:
         raise ModelError(f"{path}: corrupt model card ({exc})") from None
-    missing = [k for k in ("format", "task", "scene", "scene_digest", "inputs", "outputs", "model_sha256") if k not in card]
+    missing = [
+        k for k in ("format", "task", "scene", "scene_digest", "inputs", "outputs", "model_sha256") if k not in card
+    ]
     if missing:
         raise ModelError(f"{path}: model card lacks {', '.join(missing)}")
     if card["format"] != CARD_FORMAT:
@@ -59,14 +61,12 @@ class OnnxEstimator(Estimator):
     kind = "learned"
     backend = "onnxruntime"
 
-    def __init__(self, path: str | Path, threads: int = 1, verify: bool = True) -> None:
+    def __init__(self, path: str | Path, threads: int = 1, verify: bool = True, scene: Scene | None = None) -> None:
         self.path = path
         self.threads = threads
         self.verify = verify
-
-    @property  # type: ignore[override]
-    def name(self) -> str:
-        return Path(self.path).name
+        self.scene = scene
+        self.name = Path(path).name
 
     @cached_property
     def card_(self) -> dict[str, Any]:
@@ -77,11 +77,14 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{model}: model file is empty")
         card = read_card(model)
         if self.verify and sha256_file(model) != card["model_sha256"]:
-            raise ModelError(f"{model}: checksum differs from its card's: the file is corrupt or belongs to another card")
+            raise ModelError(
+                f"{model}: checksum differs from its card's: the file is corrupt or belongs to another card"
+            )
         return card
 
     @cached_property
-    def scene_(self) -> Scene:
+    def card_scene_(self) -> Scene:
+        """The scene the model was trained on (from its card)."""
         try:
             scene = parse_scene(self.card_["scene"], str(card_path(self.path)))
         except ConfigError as exc:
@@ -89,6 +92,25 @@ class OnnxEstimator(Estimator):
         if scene.digest != self.card_["scene_digest"]:
             raise ModelError(f"{card_path(self.path)}: the card's scene does not match its scene_digest")
         return scene
+
+    @property
+    def scene_(self) -> Scene:
+        """The scene inputs are checked against: the user's (e.g. a calibrated copy of the same
+        sensor, whose check maps its readings to the nominal sensor) or else the card's."""
+        if self.scene is None:
+            return self.card_scene_
+        card_scene = self.card_scene_
+        if self.scene.task != card_scene.task or self.input_shape(self.scene) != self.input_shape(card_scene):
+            raise ModelError(
+                f"{self.path}: the model takes {card_scene.task} inputs of shape {self.input_shape(card_scene)}, "
+                f"scene {self.scene.name!r} gives {self.input_shape(self.scene)}"
+            )
+        return self.scene
+
+    def input_shape(self, scene: Scene) -> tuple[int, ...]:
+        from tactile_learn.tasks import get_task
+
+        return get_task(scene.task).input_shape(scene)
 
     @property
     def task_name(self) -> str:
@@ -118,7 +140,10 @@ class OnnxEstimator(Estimator):
         except ValueError:
             raise ModelError(f"{self.path}: the ONNX graph's tactile-learn metadata is corrupt") from None
         if embedded.get("scene_digest") != card["scene_digest"] or embedded.get("task") != card["task"]:
-            raise ModelError(f"{self.path}: the model was built for scene {embedded.get('scene_digest')}, its card says {card['scene_digest']}")
+            raise ModelError(
+                f"{self.path}: the model was built for scene {embedded.get('scene_digest')}, "
+                f"its card says {card['scene_digest']}"
+            )
         inputs = session.get_inputs()
         outputs = session.get_outputs()
         if [i.name for i in inputs] != [i["name"] for i in card["inputs"]]:
@@ -129,10 +154,10 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{self.path}: the graph's input shape {inputs[0].shape} does not match the card's")
         return session
 
-    def fit(self, X: np.ndarray, y: Any = None) -> OnnxEstimator:  # noqa: N803
+    def fit(self, X: np.ndarray, y: Any = None) -> OnnxEstimator:
         return self
 
-    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+    def predict(self, X: np.ndarray) -> np.ndarray:
         from tactile_learn.tasks import get_task
 
         session = self.session_

@@ -19,18 +19,20 @@ class TorchEstimator(Estimator):
     kind = "learned"
     backend = "torch"
 
-    def __init__(self, net: torch.nn.Module, task: str, scene: Scene, name: str = "torch", batch_size: int = 4096) -> None:
+    def __init__(
+        self, net: torch.nn.Module, task: str, scene: Scene, name: str = "torch", batch_size: int = 4096
+    ) -> None:
         self.net = net
         self.task_name = task
         self.scene = scene
         self.name = name
         self.batch_size = batch_size
 
-    def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:  # noqa: N803
+    def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:
         return self
 
     @torch.inference_mode()
-    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+    def predict(self, X: np.ndarray) -> np.ndarray:
         x = get_task(self.task_name).check_inputs(X, self.scene)
         was_training = self.net.training
         self.net.eval()
@@ -38,7 +40,10 @@ class TorchEstimator(Estimator):
             if len(x) == 0:  # ask the network for its output shape with one dummy frame
                 probe = self.net(torch.zeros((1, *x.shape[1:]))).numpy()
                 return np.zeros((0, *probe.shape[1:]), dtype=np.float32)
-            parts = [self.net(torch.from_numpy(x[i : i + self.batch_size])).numpy() for i in range(0, len(x), self.batch_size)]
+            parts = [
+                self.net(torch.from_numpy(x[i : i + self.batch_size])).numpy()
+                for i in range(0, len(x), self.batch_size)
+            ]
         finally:
             self.net.train(was_training)
         return np.concatenate(parts).astype(np.float32, copy=False)

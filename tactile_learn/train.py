@@ -78,7 +78,9 @@ def _load_torch(path: Path) -> Any:
     try:
         return torch.load(path, map_location="cpu", weights_only=False)
     except Exception as exc:  # torch raises assorted errors for truncated or foreign files
-        raise DataError(f"{path}: unreadable checkpoint ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})") from None
+        raise DataError(
+            f"{path}: unreadable checkpoint ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+        ) from None
 
 
 def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
@@ -87,7 +89,10 @@ def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
         data = task.load_eval_data(config.val)
         if data.scene.digest != train_set.scene.digest:
             # a validation set of another scene would early-stop on the wrong physics
-            raise DataError(f"{config.val}: validation scene {data.scene.name!r} differs from the training scene {train_set.scene.name!r}")
+            raise DataError(
+                f"{config.val}: validation scene {data.scene.name!r} differs from the training scene "
+                f"{train_set.scene.name!r}"
+            )
     else:
         raise ConfigError("--val: a validation dataset is required (generate one with another --seed)")
     return data.subset(slice(0, config.val_limit))
@@ -133,7 +138,9 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         raise DataError(f"{config.data}: dataset is for task {scene.task!r}, not {config.task!r}")
     missing = [k for k in task.train_keys if k not in train_set.keys]
     if missing:
-        raise DataError(f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)")
+        raise DataError(
+            f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)"
+        )
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
     if out.exists() and any(out.iterdir()) and not resume:
@@ -155,7 +162,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
     )
     metric, higher_better = task.primary_metric
-    state: dict[str, Any] = {"epoch": 0, "best": None, "best_epoch": 0, "best_state": None, "history": [], "seconds": 0.0}
+    state: dict[str, Any] = {
+        "epoch": 0,
+        "best": None,
+        "best_epoch": 0,
+        "best_state": None,
+        "history": [],
+        "seconds": 0.0,
+    }
     if resume:
         ckpt = _load_torch(ckpt_path)
         if ckpt.get("config") != asdict(config):
@@ -167,14 +181,22 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         state = ckpt["state"]
 
     started = time.perf_counter() - state["seconds"]
-    stale = state["epoch"] - state["best_epoch"]
-    while state["epoch"] < epochs and stale < config.patience:
+    # patience only counts once the one-cycle schedule has passed its peak and half its length:
+    # before that a rising learning rate can stall validation without the run having converged
+    patience_from = max(1, epochs // 2)
+
+    def stale() -> int:
+        return max(0, state["epoch"] - max(state["best_epoch"], patience_from))
+
+    while state["epoch"] < epochs and stale() < config.patience:
         epoch = state["epoch"] + 1
         rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
         net.train()
         losses = []
         with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
-            for i, arrays in enumerate(train_set.iter_batches(list(task.train_keys), config.batch_size, rng=rng, drop_last=True)):
+            for i, arrays in enumerate(
+                train_set.iter_batches(list(task.train_keys), config.batch_size, rng=rng, drop_last=True)
+            ):
                 if i >= batches_per_epoch:
                     break
                 x, targets = task.training_batch(arrays, scene, rng)
@@ -200,7 +222,12 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         state["epoch"] = epoch
         state["seconds"] = time.perf_counter() - started
         state["history"].append(
-            {"epoch": epoch, "train_loss": float(np.mean(losses)), "val": _scalars(val_metrics), "seconds": state["seconds"]}
+            {
+                "epoch": epoch,
+                "train_loss": float(np.mean(losses)),
+                "val": _scalars(val_metrics),
+                "seconds": state["seconds"],
+            }
         )
         _save_torch(
             ckpt_path,
@@ -213,9 +240,11 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 "state": state,
             },
         )
-        stale = state["epoch"] - state["best_epoch"]
         if progress is not False:
-            print(f"epoch {epoch}: loss {np.mean(losses):.4g}, val {metric} {value:.4f}{' (best)' if improved else ''}", flush=True)
+            print(
+                f"epoch {epoch}: loss {np.mean(losses):.4g}, val {metric} {value:.4f}{' (best)' if improved else ''}",
+                flush=True,
+            )
 
     net.load_state_dict(state["best_state"])
     final = _scalars(task.evaluate(TorchEstimator(net, config.task, scene), val))

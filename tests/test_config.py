@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+import tomllib
 
 from synth.config import dumps_toml, from_dict, param, replace, to_dict
 from synth.errors import ConfigError
@@ -59,7 +59,7 @@ def test_bad_values_name_their_key(data: dict, fragment: str) -> None:
 def test_replace_validates() -> None:
     obj = Outer()
     assert replace(obj, "inner.size_mm", 3.0).inner.size_mm == 3.0
-    with pytest.raises(ConfigError, match="inner.size_mm"):
+    with pytest.raises(ConfigError, match=r"inner\.size_mm"):
         replace(obj, "inner.size_mm", -1.0)
     with pytest.raises(ConfigError, match="unknown key"):
         replace(obj, "inner.nope", 1.0)
@@ -83,12 +83,27 @@ def test_shipped_scenes_load_and_digests_differ() -> None:
 def test_scene_file_errors(tmp_path: Path) -> None:
     base = dumps_toml(load_scene("strips5").to_dict())
     cases = {
-        "unknown top key": (base.replace('task = "strips"', 'task = "strips"\ncolour = "red"'), "colour: unknown key"),
-        "unknown sensor key": (base.replace("n_rows = 5", "n_rows = 5\nn_rowz = 5"), "strips.geometry.n_rowz: unknown key"),
-        "out of range": (base.replace("adc_bits = 12", "adc_bits = 40"), "strips.readout.adc_bits: 40 is out of range"),
-        "wrong type": (base.replace("pitch_mm = 5.0", 'pitch_mm = "5"'), "strips.geometry.pitch_mm: expected float"),
+        "unknown top key": (
+            base.replace('task = "strips"', 'task = "strips"\ncolour = "red"'),
+            "colour: unknown key",
+        ),
+        "unknown sensor key": (
+            base.replace("n_rows = 5", "n_rows = 5\nn_rowz = 5"),
+            "strips.geometry.n_rowz: unknown key",
+        ),
+        "out of range": (
+            base.replace("adc_bits = 12", "adc_bits = 40"),
+            "strips.readout.adc_bits: 40 is out of range",
+        ),
+        "wrong type": (
+            base.replace("pitch_mm = 5.0", 'pitch_mm = "5"'),
+            "strips.geometry.pitch_mm: expected float",
+        ),
         "cross-field": (base.replace("strip_width_mm = 4.0", "strip_width_mm = 6.0"), "wider than the pitch"),
-        "bad output": (base.replace('outputs = ["readings"', 'outputs = ["readingz"'), "unknown output 'readingz'"),
+        "bad output": (
+            base.replace('outputs = ["readings"', 'outputs = ["readingz"'),
+            "unknown output 'readingz'",
+        ),
         "bad task": (base.replace('task = "strips"', 'task = "sonar"'), "task: 'sonar' is not one of"),
         "not toml": ("name = [", "not valid TOML"),
     }
@@ -102,7 +117,7 @@ def test_scene_file_errors(tmp_path: Path) -> None:
 
 
 def test_unknown_scene_name_lists_shipped_ones() -> None:
-    with pytest.raises(ConfigError, match="shipped scenes: .*strips16"):
+    with pytest.raises(ConfigError, match=r"shipped scenes: .*strips16"):
         load_scene("strips17")
     with pytest.raises(ConfigError, match="does not exist"):
         load_scene("missing/file.toml")

@@ -147,7 +147,7 @@ def test_load_arrays_errors(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="no such file"):
         load_arrays(tmp_path / "nope.npz")
     (tmp_path / "empty.npz").write_bytes(b"")
-    with pytest.raises(DataError, match="not a readable .npz"):
+    with pytest.raises(DataError, match=r"not a readable \.npz"):
         load_arrays(tmp_path / "empty.npz")
     np.savez(tmp_path / "a.npz", readings=np.zeros((2, 10)))
     with pytest.raises(DataError, match="missing array"):

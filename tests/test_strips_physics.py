@@ -34,7 +34,9 @@ def test_cell_kernel_matches_numerical_integral_of_boussinesq() -> None:
 
     for iy, ix in [(4, 4), (4, 6), (1, 7), (0, 0)]:
         dy, dx = (iy - 4) * h, (ix - 4) * h
-        value, _ = integrate.dblquad(lambda yy, xx: point(yy, xx, dy, dx), -h / 2, h / 2, -h / 2, h / 2, epsabs=1e-12)
+        value, _ = integrate.dblquad(
+            lambda yy, xx, dy=dy, dx=dx: point(yy, xx, dy, dx), -h / 2, h / 2, -h / 2, h / 2, epsabs=1e-12
+        )
         assert kernel[iy, ix] == pytest.approx(value, rel=1e-7)
     # a uniform load over the whole plane transmits exactly its pressure
     assert boussinesq_cell_kernel(h, z, 400).sum() == pytest.approx(1.0, abs=1e-4)
@@ -130,7 +132,9 @@ def test_zero_load_gives_baseline_readings(tiny_scene: Scene, rng: np.random.Gen
     assert not out["pressure"].any()
     noisy = sensor.forward(np.zeros((2000, *sensor.field_shape)), rng=rng, noise=True)["readings"]
     assert abs(noisy.mean() - tiny_scene.sensor.readout.offset_v) < 2e-4
-    assert noisy.std() == pytest.approx(np.hypot(tiny_scene.sensor.readout.noise_v, tiny_scene.sensor.readout.lsb_v / 12**0.5), rel=0.1)
+    assert noisy.std() == pytest.approx(
+        np.hypot(tiny_scene.sensor.readout.noise_v, tiny_scene.sensor.readout.lsb_v / 12**0.5), rel=0.1
+    )
 
 
 def test_readings_are_monotone_in_force() -> None:
@@ -163,7 +167,13 @@ def test_centred_contact_is_symmetric_and_mirrors_reverse_readings() -> None:
 @pytest.mark.parametrize("kind", ["sphere", "punch", "block", "edge"])
 def test_windowed_simulation_matches_the_full_field_forward(kind: str) -> None:
     # footprints stay inside the array: the user-field path only sees the array's own lattice
-    spec = {"kind": kind, "force_n": [0.2, 6.0], "radius_mm": [0.5, 3.0], "width_mm": [0.3, 3.0], "length_mm": [1.0, 4.0]}
+    spec = {
+        "kind": kind,
+        "force_n": [0.2, 6.0],
+        "radius_mm": [0.5, 3.0],
+        "width_mm": [0.3, 3.0],
+        "length_mm": [1.0, 4.0],
+    }
     scene = tiny_strips_scene(kinds=[spec], count=[0, 3], margin_mm=3.0).with_noise(False)
     scene = scene.with_outputs(("readings", "pressure", "field", "latent"))
     sim = StripSimulator(scene)
@@ -188,7 +198,13 @@ def test_contacts_beyond_the_border_still_load_the_edge_strips() -> None:
 
 @pytest.mark.parametrize("kind", ["sphere", "punch", "block", "edge"])
 def test_every_kind_conserves_force_even_when_tiny(kind: str) -> None:
-    spec = {"kind": kind, "force_n": [0.1, 5.0], "radius_mm": [0.01, 4.0], "width_mm": [0.01, 3.0], "length_mm": [0.05, 6.0]}
+    spec = {
+        "kind": kind,
+        "force_n": [0.1, 5.0],
+        "radius_mm": [0.01, 4.0],
+        "width_mm": [0.01, 3.0],
+        "length_mm": [0.05, 6.0],
+    }
     scene = tiny_strips_scene(kinds=[spec], count=[1, 2], margin_mm=6.0).with_outputs(("field", "latent"))
     sim = StripSimulator(scene)
     out = sim.simulate(40, np.random.default_rng(9))

@@ -63,7 +63,11 @@ def _band_weights(n: int, cells: int, h: float, pitch: float, width: float) -> n
     """(n, cells): share of each lattice cell inside strip ``i``'s band, normalised to average."""
     lo = np.arange(n) * pitch + (pitch - width) / 2
     edges = np.arange(cells + 1) * h
-    overlap = np.clip(np.minimum(edges[1:][None, :], (lo + width)[:, None]) - np.maximum(edges[:-1][None, :], lo[:, None]), 0, None)
+    overlap = np.clip(
+        np.minimum(edges[1:][None, :], (lo + width)[:, None]) - np.maximum(edges[:-1][None, :], lo[:, None]),
+        0,
+        None,
+    )
     return overlap / width
 
 
@@ -118,7 +122,9 @@ class StripArray:
     def _check_field(self, field: np.ndarray) -> np.ndarray:
         arr = np.asarray(field)
         if arr.ndim != 3 or arr.shape[1:] != self.field_shape:
-            raise InputError(f"pressure field: expected shape (B, {self.field_shape[0]}, {self.field_shape[1]}), got {arr.shape}")
+            raise InputError(
+                f"pressure field: expected shape (B, {self.field_shape[0]}, {self.field_shape[1]}), got {arr.shape}"
+            )
         if not np.isfinite(arr).all():
             raise InputError("pressure field: contains NaN or inf")
         if (arr < 0).any():
@@ -242,9 +248,9 @@ class StripReadout:
         self.unloaded_ohm = unloaded_ohm
         self.v_unloaded = self._divider(np.float64(unloaded_ohm))
 
-    def _divider(self, resistance: np.ndarray) -> np.ndarray:
+    def _divider(self, resistance: np.ndarray | float) -> np.ndarray:
         c = self.config
-        return c.supply_v * c.reference_ohm / (c.reference_ohm + resistance)
+        return np.asarray(c.supply_v * c.reference_ohm / (c.reference_ohm + np.asarray(resistance)))
 
     def volts(self, resistance: np.ndarray) -> np.ndarray:
         """Reading (V) of strips of ``resistance`` (ohm), before noise and the ADC (float64).
@@ -355,7 +361,9 @@ class StripSensor:
             gains = np.ones((b, self.n_strips), dtype=np.float32)
         gains = np.asarray(gains, dtype=np.float32)
         if gains.shape != (b, self.n_strips) or not np.isfinite(gains).all() or (gains <= 0).any():
-            raise InputError(f"gains: expected positive finite values of shape ({b}, {self.n_strips}), got {gains.shape}")
+            raise InputError(
+                f"gains: expected positive finite values of shape ({b}, {self.n_strips}), got {gains.shape}"
+            )
         clean = self.clean_readings(row, col, gains).astype(np.float32)
         return {
             "readings": self.digitise(clean, rng, noise).astype(np.float32),
@@ -525,7 +533,11 @@ class StripSimulator:
         want_field = self.scene.wants("field")
         windows = self.windows(contacts) if (want_readings or want_pressure or want_field) else []
         shape = (n, g.n_rows, g.n_cols)
-        row, col, pressure = np.zeros(shape, np.float32), np.zeros(shape, np.float32), np.zeros(shape, np.float32)
+        row, col, pressure = (
+            np.zeros(shape, np.float32),
+            np.zeros(shape, np.float32),
+            np.zeros(shape, np.float32),
+        )
         for slots, win in windows:
             parts = self.sensor.array.window_products(win, stress=want_readings, cells=want_pressure)
             # a frame holds at most one window per slot: plain fancy-index adds, no np.add.at needed
@@ -550,7 +562,9 @@ class StripSimulator:
             out.update(
                 latent_n_contacts=contacts["count"].astype(np.int8),
                 latent_kind=contacts["kind"].astype(np.int8),
-                latent_xy_mm=np.where(contacts["present"][..., None], np.stack([contacts["x_mm"], contacts["y_mm"]], -1), 0).astype(f32),
+                latent_xy_mm=np.where(
+                    contacts["present"][..., None], np.stack([contacts["x_mm"], contacts["y_mm"]], -1), 0
+                ).astype(f32),
                 latent_twin=contacts["twin"],
                 latent_strip_gain=gains,
             )

@@ -119,7 +119,10 @@ class StripStimuli:
     empty_fraction: float = param(0.0, lo=0.0, hi=1.0, doc="share of frames with no contact at all")
     margin_mm: float = param(0.0, lo=-20.0, hi=100.0, unit="mm")
     twin_fraction: float = param(
-        0.0, lo=0.0, hi=1.0, doc="share of multi-contact frames whose contacts are identical (ghost-ambiguous)"
+        0.0,
+        lo=0.0,
+        hi=1.0,
+        doc="share of multi-contact frames whose contacts are identical (ghost-ambiguous)",
     )
     kinds: tuple[StimulusKind, ...] = (StimulusKind(),)
 

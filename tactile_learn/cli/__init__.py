@@ -18,13 +18,14 @@ from synth.errors import TactileError
 
 __all__ = ["main"]
 
-SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "scenes")
+SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "bench", "calibrate", "scenes", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="tactile-learn",
-        description="Simulate soft tactile and thermal sensors; invert their readings with classical and learned methods.",
+        description="Simulate soft tactile and thermal sensors; invert their readings with classical and "
+        "learned methods.",
         epilog="Run 'tactile-learn COMMAND --help' for a command's options and examples.",
     )
     parser.add_argument("--version", action="version", version=f"tactile-learn {__version__}")

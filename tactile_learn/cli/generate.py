@@ -52,5 +52,8 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     if not args.quiet:
         rate = args.n / elapsed if elapsed > 0 else float("inf")
-        print(f"wrote {args.n} samples of scene {scene.name} ({scene.digest}) to {manifest.parent} in {elapsed:.1f} s ({rate:,.0f} samples/s)")
+        print(
+            f"wrote {args.n} samples of scene {scene.name} ({scene.digest}) to {manifest.parent} "
+            f"in {elapsed:.1f} s ({rate:,.0f} samples/s)"
+        )
     return 0

@@ -8,7 +8,7 @@ import numpy as np
 
 from synth.dataset import load_arrays
 from synth.errors import ConfigError, InputError
-from synth.io import atomic_open
+from synth.io import atomic_save_npz
 from synth.scene import load_scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.cli.common import non_negative_int, on_off
@@ -48,7 +48,6 @@ def run(args: argparse.Namespace) -> int:
     out = sensor.forward(field, gains=gains, rng=np.random.default_rng(args.seed), noise=args.noise)
     if single:
         out = {k: v[0] for k, v in out.items()}
-    with atomic_open(args.out, "wb") as handle:
-        np.savez(handle, **out)
+    atomic_save_npz(args.out, out)
     print(f"wrote {args.out}: readings {out['readings'].shape}, intersection map {out['pressure'].shape}")
     return 0

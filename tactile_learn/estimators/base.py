@@ -27,11 +27,11 @@ class Estimator:
     backend: str = "numpy"
     needs_fit: ClassVar[bool] = False
 
-    def fit(self, X: np.ndarray, y: Any = None) -> Estimator:  # noqa: N803 - scikit-learn naming
+    def fit(self, X: np.ndarray, y: Any = None) -> Estimator:
         """Learn from ``X`` (and targets ``y``); the base class learns nothing."""
         return self
 
-    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+    def predict(self, X: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
     def get_params(self) -> dict[str, Any]:

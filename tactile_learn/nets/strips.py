@@ -13,8 +13,9 @@ Structure that matches the physics:
    contact's row and column loads agree in magnitude and footprint, a ghost's do not.
    A global context vector (an MLP over all N+M loads) is added everywhere: which rows pair with
    which columns is decided by magnitudes across the whole array.
-4. Axial blocks mix every crossing with the strongest features along its row and its column (its
-   competitors in a ghost configuration); a softplus keeps pressure non-negative.
+4. Mixing blocks combine every crossing with its 5 x 5 neighbourhood (depthwise) and with the
+   strongest features along its row and its column (its competitors in a ghost configuration); a
+   softplus keeps pressure non-negative.
 
 Normalisation lives in the module as buffers, so the exported ONNX graph maps raw volts to kPa.
 """
@@ -32,7 +33,7 @@ from synth.sensors.strips import StripSensor
 
 __all__ = ["SIZES", "StripLoads", "StripNet", "build_strip_net", "input_stats", "strip_loss"]
 
-#: size -> (strip encoder channels, crossing channels, context width, axial blocks)
+#: size -> (strip encoder channels, crossing channels, context width, mixing blocks)
 SIZES: dict[str, tuple[int, int, int, int]] = {"small": (12, 16, 64, 2), "large": (24, 32, 128, 3)}
 
 
@@ -47,6 +48,8 @@ def input_stats(readings: np.ndarray, pressure: np.ndarray, scene: Scene) -> dic
 
 class StripLoads(nn.Module):
     """Readings (V) -> per-strip loads, the readout inverse of ``StripSensor.invert_readings``."""
+
+    segments: torch.Tensor
 
     def __init__(self, scene: Scene) -> None:
         super().__init__()
@@ -71,23 +74,27 @@ class StripLoads(nn.Module):
         return (1.0 - resistance / self.r0).clamp(0.0, 1.0) * self.segments
 
 
-class _Axial(nn.Module):
-    """Mixes every crossing with the strongest feature along its row and along its column.
+class _Mix(nn.Module):
+    """Mixes every crossing with its neighbourhood and with the strongest features along its row
+    and its column.
 
     A ghost at (i1, j2) competes with the real contacts (i1, j1) and (i2, j2), which share its row
     and its column: max-pooling along both axes lets each crossing see its competitors however far
-    apart they are, at the cost of a 1 x 1 convolution (a 3 x 3 stack would need many layers).
+    apart they are. Two contacts on nearby rows merge their row profiles; a depthwise 5 x 5
+    convolution lets a crossing see how the merged blob is shared among its neighbours. Both are
+    cheap (no dense 3 x 3 convolution: this keeps batch-1 latency in the microseconds).
     """
 
     def __init__(self, channels: int) -> None:
         super().__init__()
-        self.mix = nn.Conv2d(3 * channels, channels, 1)
+        self.local = nn.Conv2d(channels, channels, 5, padding=2, groups=channels)
+        self.mix = nn.Conv2d(4 * channels, channels, 1)
         self.act = nn.ReLU()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         row_max = x.amax(dim=3, keepdim=True).expand_as(x)
         col_max = x.amax(dim=2, keepdim=True).expand_as(x)
-        return self.act(x + self.mix(torch.cat([x, row_max, col_max], dim=1)))
+        return self.act(x + self.mix(torch.cat([x, self.local(x), row_max, col_max], dim=1)))
 
 
 def _encoder(channels: int) -> nn.Sequential:
@@ -119,7 +126,7 @@ class StripNet(nn.Module):
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.product_proj = nn.Conv2d(1, hidden, 1, bias=False)
-        self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(axial)])
+        self.blocks = nn.Sequential(*[_Mix(hidden) for _ in range(axial)])
         self.head = nn.Conv2d(hidden, 1, 1)
 
     def forward(self, readings: torch.Tensor) -> torch.Tensor:

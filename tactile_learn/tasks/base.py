@@ -132,7 +132,8 @@ class Task(ABC):
     def train_forward(self, net: torch.nn.Module, inputs: torch.Tensor) -> torch.Tensor:
         """The output the loss sees during training (default ``net(inputs)``); a classifier may
         return logits here while its ``forward`` returns probabilities."""
-        return net(inputs)  # type: ignore[no-any-return]
+        output: torch.Tensor = net(inputs)
+        return output
 
     def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         """Training loss of the network output against the targets from ``training_batch``."""

@@ -104,11 +104,11 @@ class StripsTask(Task):
                 f"{g.n_rows}+{g.n_cols} strips (pass --scene for another sensor)"
             )
         if pressure.shape != (len(readings), g.n_rows, g.n_cols):
-            raise DataError(f"{path}: pressure has shape {pressure.shape}, expected {(len(readings), g.n_rows, g.n_cols)}")
+            raise DataError(
+                f"{path}: pressure has shape {pressure.shape}, expected {(len(readings), g.n_rows, g.n_cols)}"
+            )
         extra = {k: v for k, v in arrays.items() if k.startswith("latent_")}
-        return EvalData(
-            inputs=readings, truth={"pressure": pressure}, scene=scene, extra=extra, source=str(path)
-        )
+        return EvalData(inputs=readings, truth={"pressure": pressure}, scene=scene, extra=extra, source=str(path))
 
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
         pitch = data.scene.sensor.geometry.pitch_mm

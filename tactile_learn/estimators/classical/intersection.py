@@ -40,7 +40,9 @@ class IntersectionEstimator(Estimator):
     task = "strips"
     name = "intersection"
 
-    def __init__(self, scene: Scene, rule: Literal["product", "geometric"] = "product", noise_floor: float = 2.0) -> None:
+    def __init__(
+        self, scene: Scene, rule: Literal["product", "geometric"] = "product", noise_floor: float = 2.0
+    ) -> None:
         self.scene = scene
         self.rule = rule
         self.noise_floor = noise_floor
@@ -49,7 +51,7 @@ class IntersectionEstimator(Estimator):
     def sensor_(self) -> StripSensor:
         return StripSensor(self.scene.sensor)
 
-    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+    def predict(self, X: np.ndarray) -> np.ndarray:
         from tactile_learn.tasks import get_task
 
         readings = get_task("strips").check_inputs(X, self.scene)

@@ -90,7 +90,7 @@ class ProjectionEstimator(Estimator):
         g_col = (v_col[:, None, :] * d_col).reshape(b, -1)
         return g_row @ m["k_row_t"] + g_col @ m["k_col_t"]
 
-    def predict(self, X: np.ndarray) -> np.ndarray:  # noqa: N803
+    def predict(self, X: np.ndarray) -> np.ndarray:
         m = self.model_
         sensor: StripSensor = m["sensor"]
         start = m["start"].predict(X)  # validates X

@@ -1,0 +1,314 @@
+"""Run time against error: every method and backend of a task on the same held-out frames.
+
+For each registered classical method and each shipped model of the task (onnxruntime with 1 and 2
+threads, and torch eager when torch is installed and the model's weights are shipped beside it):
+
+- the task's metrics (``task.evaluate``: the numbers ``tactile-learn eval`` prints);
+- latency at batch 1: warm-up calls, then timed calls until ``repeats`` or the time budget,
+  median and 99th percentile per frame (microseconds);
+- throughput at batch 1024 (frames per second, median of repeats).
+
+The ``simulator`` pseudo-task reports samples/s per scene and the peak memory of a dataset
+generation. JSON schema (stable): ``{"task", "scene", "n_frames", "machine", "methods": [{"name",
+"kind", "backend", "metrics", "latency_us_p50_b1", "latency_us_p99_b1", "throughput_fps_b1024"}],
+"ratios": {...}}``.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from synth import __version__
+from synth.dataset import simulate_shard
+from synth.io import atomic_save_npz
+from synth.scene import Scene, available_scenes, load_scene
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.methods import shipped_models
+from tactile_learn.tasks import get_task
+from tactile_learn.tasks.base import EvalData
+
+__all__ = ["ERROR_METRIC", "bench_simulator", "bench_task", "machine_info", "time_predict"]
+
+#: per task: (metric plotted as error, lower is better?) - the Pareto plot's y axis
+ERROR_METRIC: dict[str, tuple[str, bool]] = {
+    "strips": ("nrmse", True),
+    "thermal": ("accuracy", False),
+    "fsr": ("loc_err_mm_median", True),
+}
+#: the seed paper's own algorithm per task: the reference of the ratios
+REFERENCE_METHOD = {"strips": "intersection", "thermal": "curve_match", "fsr": "triangulation"}
+BENCH_SEED = 909_090  # held-out frames: no training or validation set uses this seed
+
+
+def machine_info() -> dict[str, Any]:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    versions = {"tactile_learn": __version__, "numpy": np.__version__, "python": platform.python_version()}
+    for module in ("scipy", "onnxruntime", "torch"):
+        try:
+            versions[module] = __import__(module).__version__
+        except ImportError:
+            continue
+    return {"cpu": cpu, "cores": os.cpu_count(), "platform": sys.platform, "versions": versions}
+
+
+def time_predict(
+    predict: Callable[[np.ndarray], Any],
+    inputs: np.ndarray,
+    *,
+    repeats: int,
+    budget_s: float,
+    warmup: int = 5,
+) -> dict[str, float]:
+    """Latency per frame at batch 1 (p50, p99 in us) and throughput at batch 1024 (frames/s)."""
+    n = len(inputs)
+    for i in range(warmup):
+        predict(inputs[i % n : i % n + 1])
+    times: list[float] = []
+    deadline = time.perf_counter() + budget_s
+    i = 0
+    while i < repeats and (i < 10 or time.perf_counter() < deadline):
+        frame = inputs[i % n : i % n + 1]
+        start = time.perf_counter()
+        predict(frame)
+        times.append(time.perf_counter() - start)
+        i += 1
+    big = np.resize(inputs, (1024, *inputs.shape[1:])).astype(np.float32)
+    predict(big)
+    batch_times: list[float] = []
+    deadline = time.perf_counter() + budget_s
+    for k in range(max(3, repeats // 50)):
+        start = time.perf_counter()
+        predict(big)
+        batch_times.append(time.perf_counter() - start)
+        if k >= 2 and time.perf_counter() > deadline:
+            break
+    us = np.array(times) * 1e6
+    return {
+        "latency_us_p50_b1": float(np.median(us)),
+        "latency_us_p99_b1": float(np.percentile(us, 99)),
+        "throughput_fps_b1024": float(1024 / np.median(batch_times)),
+        "latency_samples": len(times),
+    }
+
+
+def _bench_data(task_name: str, scene: Scene, n: int, data: str | None) -> EvalData:
+    task = get_task(task_name)
+    if data:
+        return task.load_eval_data(data, scene).subset(slice(0, n))
+    arrays = simulate_shard(scene, BENCH_SEED, 0, n)
+    tmp = tempfile.mkdtemp(prefix="tl-bench-")
+    path = Path(tmp) / "frames.npz"
+    atomic_save_npz(path, arrays)
+    return task.load_eval_data(path, scene)
+
+
+def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[[], Estimator]]]:
+    """(label, factory) for every shipped model of the task whose scene matches: ORT 1 and 2
+    threads, and torch eager when torch and the model's weights (NAME.pt) are available."""
+    from tactile_learn.runtime import read_card
+
+    variants: list[tuple[str, Callable[[], Estimator]]] = []
+    for name, path in sorted(shipped_models(task_name).items()):
+        try:
+            card = read_card(path)
+        except Exception:  # a broken card is reported by eval, not by the benchmark
+            continue
+        if card["scene_digest"] != scene.digest:
+            continue
+        for threads in (1, 2):
+            variants.append((name, partial(_onnx_model, path, threads)))
+        weights = path.with_suffix(".pt")
+        if weights.is_file() and _torch_available():
+            variants.append((name, partial(_torch_model, weights, card)))
+    return variants
+
+
+def _onnx_model(path: Path, threads: int) -> Estimator:
+    from tactile_learn.runtime import OnnxEstimator
+
+    return _named(OnnxEstimator(path, threads=threads), f"onnxruntime-{threads}t")
+
+
+def _named(est: Estimator, backend: str) -> Estimator:
+    est.backend = backend
+    return est
+
+
+def _torch_available() -> bool:
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _torch_model(weights: Path, card: dict[str, Any]) -> Estimator:
+    import torch
+
+    from synth.scene import parse_scene
+    from tactile_learn.torch_estimator import TorchEstimator
+
+    saved = torch.load(weights, map_location="cpu", weights_only=False)
+    task = get_task(card["task"])
+    scene = parse_scene(card["scene"])
+    net = task.build_net(saved["size"], scene, saved["stats"])
+    net.load_state_dict(saved["state_dict"])
+    net.eval()
+    torch.set_num_threads(1)
+    est = TorchEstimator(net, card["task"], scene, name=weights.with_suffix(".onnx").name)
+    est.backend = "torch-eager-1t"
+    return est
+
+
+def bench_task(
+    task_name: str,
+    *,
+    n_frames: int = 2000,
+    repeats: int = 300,
+    budget_s: float = 3.0,
+    scene_name: str | None = None,
+    data: str | None = None,
+    methods: list[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    task = get_task(task_name)
+    scene = load_scene(scene_name or task.default_scene)
+    frames = _bench_data(task_name, scene, n_frames, data)
+    entries: list[tuple[str, Callable[[], Estimator]]] = [
+        (name, partial(factory, scene)) for name, factory in task.classical_methods().items()
+    ]
+    entries += _learned_variants(task_name, scene)
+    results = []
+    for label, factory in entries:
+        if methods and label not in methods:
+            continue
+        est = factory()
+        if progress:
+            progress(f"{task_name}: {label} [{est.backend}]")
+        start = time.perf_counter()
+        metrics = task.evaluate(est, frames)
+        eval_seconds = time.perf_counter() - start
+        timing = time_predict(est.predict, frames.inputs, repeats=repeats, budget_s=budget_s)
+        results.append(
+            {
+                "name": label,
+                "kind": est.kind,
+                "backend": est.backend,
+                "metrics": metrics,
+                "eval_seconds": eval_seconds,
+                **timing,
+            }
+        )
+    return {
+        "task": task_name,
+        "scene": scene.name,
+        "scene_digest": scene.digest,
+        "n_frames": len(frames),
+        "machine": machine_info(),
+        "methods": results,
+        "ratios": ratios(task_name, results),
+    }
+
+
+def ratios(task_name: str, results: list[dict[str, Any]]) -> dict[str, Any]:
+    """Each learned entry's error and latency relative to the task's reference classical method."""
+    metric, lower_better = ERROR_METRIC[task_name]
+    ref = next((r for r in results if r["name"] == REFERENCE_METHOD[task_name]), None)
+    if ref is None:
+        return {}
+    out: dict[str, Any] = {"reference": ref["name"], "error_metric": metric}
+    ref_error = _error(ref["metrics"], metric, lower_better)
+    for r in results:
+        if r["kind"] != "learned":
+            continue
+        err = _error(r["metrics"], metric, lower_better)
+        out[f"{r['name']} [{r['backend']}]"] = {
+            "error_ratio": err / ref_error if ref_error else None,
+            "latency_ratio": r["latency_us_p50_b1"] / ref["latency_us_p50_b1"],
+            "throughput_ratio": r["throughput_fps_b1024"] / ref["throughput_fps_b1024"],
+        }
+    return out
+
+
+def _error(metrics: dict[str, Any], metric: str, lower_better: bool) -> float:
+    value = float(metrics[metric])
+    return value if lower_better else 1.0 - value
+
+
+def bench_simulator(
+    *, quick: bool = False, scenes: list[str] | None = None, memory_n: int | None = None
+) -> dict[str, Any]:
+    """Samples/s of every scene's simulator (single process) and peak memory of a generation."""
+    from synth.sensors import sensor_module
+
+    rows = []
+    for name in scenes or available_scenes():
+        scene = load_scene(name)
+        sim = sensor_module(scene.task).make_simulator(scene)
+        rng = np.random.default_rng(BENCH_SEED)
+        n = 1024
+        sim.simulate(64, rng)  # warm-up: builds operators and caches
+        times: list[float] = []
+        deadline = time.perf_counter() + (0.5 if quick else 2.0)
+        while len(times) < 3 or (time.perf_counter() < deadline and len(times) < 50):
+            start = time.perf_counter()
+            sim.simulate(n, rng)
+            times.append(time.perf_counter() - start)
+        rows.append(
+            {
+                "scene": name,
+                "task": scene.task,
+                "samples_per_s": n / float(np.median(times)),
+                "repeats": len(times),
+            }
+        )
+    memory = _generation_memory("strips16", memory_n or (20_000 if quick else 100_000))
+    return {"task": "simulator", "machine": machine_info(), "scenes": rows, "generation": memory}
+
+
+def _generation_memory(scene: str, n: int, workers: int = 2) -> dict[str, Any]:
+    """Peak resident memory (MiB) of generating ``n`` samples in a fresh process, and its rate."""
+    code = (
+        "import resource, sys, time; from synth.scene import load_scene; from synth.dataset import generate; "
+        "t = time.perf_counter(); "
+        "generate(load_scene(sys.argv[1]), int(sys.argv[2]), 1, sys.argv[3], workers=int(sys.argv[4])); "
+        "dt = time.perf_counter() - t; "
+        "own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+        "kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss; "
+        "print(dt, own, kids)"
+    )
+    with tempfile.TemporaryDirectory(prefix="tl-genmem-") as tmp:
+        out = subprocess.run(
+            [sys.executable, "-c", code, scene, str(n), str(Path(tmp) / "d"), str(workers)],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout.split()
+    seconds, own_kib, child_kib = float(out[0]), int(out[1]), int(out[2])
+    return {
+        "scene": scene,
+        "n": n,
+        "workers": workers,
+        "seconds": seconds,
+        "samples_per_s": n / seconds,
+        "peak_rss_mib_main": own_kib / 1024,
+        "peak_rss_mib_worker": child_kib / 1024,
+    }

@@ -1,0 +1,118 @@
+"""Markdown tables and Pareto plots of benchmark results."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+from typing import Any
+
+from synth.io import atomic_open
+from tactile_learn.bench import ERROR_METRIC
+
+__all__ = ["markdown", "pareto_plot"]
+
+#: metrics shown in the table per task (the first is the Pareto plot's error axis)
+TABLE_METRICS = {
+    "strips": ("nrmse", "pearson_r_mean", "pearson_r_median", "peak_err_mm_median"),
+    "thermal": ("accuracy", "accuracy_by_duration"),
+    "fsr": ("loc_err_mm_median", "loc_err_mm_p95", "force_accuracy", "detect_accuracy"),
+}
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, dict):
+        return ", ".join(f"{k}: {_fmt(v)}" for k, v in value.items())
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return "-" if value is None else str(value)
+
+
+def markdown(result: dict[str, Any]) -> str:
+    """A Markdown table of one task's benchmark (or the simulator's)."""
+    if result["task"] == "simulator":
+        lines = ["| scene | task | samples/s (1 process) |", "|---|---|---:|"]
+        lines += [f"| {r['scene']} | {r['task']} | {r['samples_per_s']:,.0f} |" for r in result["scenes"]]
+        g = result["generation"]
+        lines.append("")
+        lines.append(
+            f"Generation of {g['n']:,} `{g['scene']}` samples with {g['workers']} workers: {g['seconds']:.1f} s "
+            f"({g['samples_per_s']:,.0f} samples/s), peak RSS {g['peak_rss_mib_main']:.0f} MiB (main), "
+            f"{g['peak_rss_mib_worker']:.0f} MiB (largest worker)."
+        )
+        return "\n".join(lines) + "\n"
+    keys = TABLE_METRICS[result["task"]]
+    head = ["method", "kind", "backend", *keys, "p50 us (b1)", "p99 us (b1)", "frames/s (b1024)"]
+    lines = [
+        f"**{result['task']}** on `{result['scene']}`, {result['n_frames']} held-out frames",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * 3 + "---:|" * (len(keys) + 3),
+    ]
+    for m in result["methods"]:
+        cells = [m["name"], m["kind"], m["backend"], *(_fmt(m["metrics"].get(k)) for k in keys)]
+        cells += [
+            f"{m['latency_us_p50_b1']:,.1f}",
+            f"{m['latency_us_p99_b1']:,.1f}",
+            f"{m['throughput_fps_b1024']:,.0f}",
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    ratios = {k: v for k, v in result.get("ratios", {}).items() if isinstance(v, dict)}
+    if ratios:
+        lines += [
+            "",
+            f"Relative to `{result['ratios']['reference']}` ({result['ratios']['error_metric']} as error):",
+            "",
+        ]
+        lines += [
+            "| learned | error ratio | latency ratio (b1) | throughput ratio (b1024) |",
+            "|---|---:|---:|---:|",
+        ]
+        for name, r in ratios.items():
+            lines.append(
+                f"| {name} | {_fmt(r['error_ratio'])} | {_fmt(r['latency_ratio'])} | {_fmt(r['throughput_ratio'])} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def pareto_plot(results: list[dict[str, Any]], path: str | Path) -> bool:
+    """Error against latency (log axis), one panel per task, one labelled marker per method/backend."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # plotting is an optional extra
+        return False
+    tasks = [r for r in results if r["task"] in ERROR_METRIC and r["methods"]]
+    if not tasks:
+        return False
+    fig, axes = plt.subplots(1, len(tasks), figsize=(5.2 * len(tasks), 4.2), squeeze=False)
+    for ax, result in zip(axes[0], tasks, strict=True):
+        metric, lower_better = ERROR_METRIC[result["task"]]
+        label = metric if lower_better else f"1 - {metric}"
+        for m in result["methods"]:
+            value = float(m["metrics"][metric])
+            error = value if lower_better else 1.0 - value
+            marker = "o" if m["kind"] == "classical" else "s"
+            ax.scatter(m["latency_us_p50_b1"], error, marker=marker, s=40)
+            ax.annotate(
+                f"{m['name']}\n{m['backend']}",
+                (m["latency_us_p50_b1"], error),
+                fontsize=7,
+                xytext=(4, 2),
+                textcoords="offset points",
+            )
+        ax.set_xscale("log")
+        ax.set(
+            xlabel="median latency per frame, batch 1 (us)",
+            ylabel=label,
+            title=f"{result['task']} ({result['scene']})",
+        )
+        ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110)
+    plt.close(fig)
+    with atomic_open(path, "wb") as handle:
+        handle.write(buffer.getvalue())
+    return True

@@ -1,0 +1,66 @@
+"""tactile-learn bench: run time against error for every method and backend."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from synth.io import atomic_write_text
+from tactile_learn.cli.common import positive_int, write_json
+
+HELP = "benchmark every method and backend of a task: error, latency (b1) and throughput (b1024)"
+EXAMPLES = """\
+  tactile-learn bench --task strips --json results/strips.json --plot results/strips.png
+  tactile-learn bench --task all --quick
+  tactile-learn bench --task simulator
+  tactile-learn bench --task fsr --data data/fsr-test --n 5000
+Learned methods are the shipped models of the task (models/*.onnx whose scene matches), run with
+onnxruntime on 1 and 2 threads and, when torch and NAME.pt are present, torch eager. The JSON schema
+is documented in tactile_learn/bench.py; a Markdown table is printed and written beside the JSON."""
+
+TASKS = ("strips", "thermal", "fsr", "simulator", "all")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--task", required=True, choices=TASKS)
+    parser.add_argument("--json", default=None, help="write results here (and a .md table beside it)")
+    parser.add_argument("--plot", default=None, help="Pareto plot (PNG): error against latency")
+    parser.add_argument("--quick", action="store_true", help="fewer frames and repeats (a minute per task)")
+    parser.add_argument("--n", type=positive_int, default=None, help="held-out frames (default 2000, quick 500)")
+    parser.add_argument("--data", default=None, help="evaluate on this dataset instead of fresh frames")
+    parser.add_argument("--scene", default=None, help="scene (default: the task's)")
+    parser.add_argument("--method", action="append", default=None, help="only these methods (repeatable)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from tactile_learn.bench import bench_simulator, bench_task
+    from tactile_learn.bench_report import markdown, pareto_plot
+
+    tasks = ["strips", "thermal", "fsr", "simulator"] if args.task == "all" else [args.task]
+    n = args.n or (500 if args.quick else 2000)
+    results: list[dict[str, Any]] = []
+    for task in tasks:
+        if task == "simulator":
+            result = bench_simulator(quick=args.quick)
+        else:
+            result = bench_task(
+                task,
+                n_frames=n,
+                repeats=100 if args.quick else 400,
+                budget_s=1.0 if args.quick else 4.0,
+                scene_name=args.scene,
+                data=args.data,
+                methods=args.method,
+                progress=lambda text: print(f"  measuring {text}", file=sys.stderr, flush=True),
+            )
+        results.append(result)
+        print(markdown(result), flush=True)
+    payload: dict[str, Any] = results[0] if len(results) == 1 else {"task": "all", "results": results}
+    if args.json:
+        write_json(args.json, payload)
+        atomic_write_text(Path(args.json).with_suffix(".md"), "\n".join(markdown(r) for r in results))
+    if args.plot:
+        pareto_plot(results, args.plot)
+    return 0
