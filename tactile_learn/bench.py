@@ -109,10 +109,12 @@ def time_predict(
     }
 
 
-def _bench_data(task_name: str, scene: Scene, n: int, data: str | None) -> EvalData:
+def _bench_data(task_name: str, scene: Scene | None, n: int, data: str | None) -> EvalData:
+    """Frames to benchmark on: ``data`` (with its own scene unless one is given), else fresh frames."""
     task = get_task(task_name)
     if data:
         return task.load_eval_data(data, scene).subset(slice(0, n))
+    scene = scene or load_scene(task.default_scene)
     arrays = simulate_shard(scene, BENCH_SEED, 0, n)
     tmp = tempfile.mkdtemp(prefix="tl-bench-")
     path = Path(tmp) / "frames.npz"
@@ -190,8 +192,8 @@ def bench_task(
     progress: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     task = get_task(task_name)
-    scene = load_scene(scene_name or task.default_scene)
-    frames = _bench_data(task_name, scene, n_frames, data)
+    frames = _bench_data(task_name, load_scene(scene_name) if scene_name else None, n_frames, data)
+    scene = frames.scene
     entries: list[tuple[str, Callable[[], Estimator]]] = [
         (name, partial(factory, scene)) for name, factory in task.classical_methods().items()
     ]

@@ -9,11 +9,13 @@
    7 on real inputs, or the export fails and nothing is written under the final names;
 4. optionally evaluates the ONNX model on a held-out ``test`` dataset, so the card's metrics come
    with the command that measured them;
-5. writes ``NAME.onnx`` and ``NAME.json`` (the card) atomically.
+5. writes ``NAME.onnx``, ``NAME.json`` (the card) and ``NAME.pt`` (the torch weights, for the
+   benchmark's torch-eager backend) atomically.
 """
 
 from __future__ import annotations
 
+import io
 import json
 import shlex
 import sys
@@ -130,30 +132,51 @@ def export(
         "scene": scene.to_dict(),
         "scene_digest": scene.digest,
         "training": {
-            "data": result["train_data"],
-            "validation": result["val_data"],
+            "data": {**result["train_data"], "path": portable_path(result["train_data"]["path"])},
+            "validation": {**result["val_data"], "path": portable_path(result["val_data"]["path"])},
             "epochs_run": result["epochs_run"],
             "best_epoch": result["best_epoch"],
             "train_seconds": result["train_seconds"],
             "threads": result["threads"],
-            "config": result["config"],
+            "config": {
+                k: portable_path(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
+            },
         },
         "parity": parity,
         "metrics": {"validation": result["val_metrics"]},
         "exported": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+    # the torch weights beside the ONNX file: bench's torch-eager backend and fine-tuning use them
+    weights = io.BytesIO()
+    torch.save(
+        {"task": task.name, "size": saved["size"], "stats": saved["stats"], "state_dict": saved["state_dict"]}, weights
+    )
+    with atomic_open(out.with_suffix(".pt"), "wb") as handle:
+        handle.write(weights.getvalue())
     # write the card first without held-out metrics, so the runtime can load the model to measure them
     atomic_write_json(card_path(out), card)
     if test is not None:
         data = task.load_eval_data(test)
         metrics = task.evaluate(OnnxEstimator(out), data)
         card["metrics"]["heldout"] = {
-            "data": {"path": str(test), "seed": _dataset_seed(test), "n_frames": len(data)},
+            "data": {"path": portable_path(test), "seed": _dataset_seed(test), "n_frames": len(data)},
             "values": metrics,
             "command": command or _command_line(),
         }
         atomic_write_json(card_path(out), _json_ready(card))
     return card
+
+
+def portable_path(path: str | Path) -> str:
+    """``path`` as it may appear in a shipped card: relative to the working folder when inside it,
+    else only its name (a card never records a path of the machine it was made on)."""
+    p = Path(path)
+    if not p.is_absolute():
+        return p.as_posix()
+    try:
+        return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return p.name
 
 
 def _dataset_seed(path: str | Path) -> int | None:
@@ -165,7 +188,8 @@ def _dataset_seed(path: str | Path) -> int | None:
 
 
 def _command_line() -> str:
-    return "tactile-learn " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    args = [portable_path(a) if Path(a).is_absolute() else a for a in sys.argv[1:]]
+    return "tactile-learn " + " ".join(shlex.quote(a) for a in args)
 
 
 def _json_ready(value: Any) -> Any:

@@ -89,7 +89,7 @@ def test_resume_after_interruption_matches_an_uninterrupted_run(tmp_path: Path) 
 def test_sigkilled_generation_resumes_to_identical_output(tmp_path: Path) -> None:
     code = (
         "import sys; from synth.scene import load_scene; from synth.dataset import generate; "
-        "generate(load_scene('strips16'), 20000, 9, sys.argv[1], shard_size=1000)"
+        "generate(load_scene('strips16'), 10000, 9, sys.argv[1], shard_size=500)"
     )
     reference = tmp_path / "ref"
     subprocess.run([sys.executable, "-c", code, str(reference)], check=True)

@@ -1,0 +1,185 @@
+"""Train -> export -> runtime, on a tiny strips5 dataset: reproducible, resumable, parity-checked,
+and the runtime works where torch cannot be imported."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from synth.dataset import generate
+from synth.errors import InputError, ModelError
+from synth.scene import load_scene
+from tactile_learn.export import PARITY_TOL, export
+from tactile_learn.runtime import OnnxEstimator
+from tactile_learn.torch_estimator import TorchEstimator
+from tactile_learn.train import TrainConfig, load_run, train
+
+TRAIN_ARGS = ["--task", "strips", "--epochs", "3", "--batch-size", "64", "--seed", "5", "--threads", "1"]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("strips5")
+    scene = load_scene("strips5")
+    generate(scene, 3000, 1, root / "train", shard_size=1000)
+    generate(scene, 400, 2, root / "val")
+    generate(scene, 400, 3, root / "test")
+    return root
+
+
+@pytest.fixture(scope="module")
+def run(data: Path) -> Path:
+    config = TrainConfig(
+        task="strips",
+        data=str(data / "train"),
+        val=str(data / "val"),
+        out=str(data / "run"),
+        epochs=3,
+        batch_size=64,
+        seed=5,
+        threads=1,
+    )
+    train(config, progress=False)
+    return data / "run"
+
+
+@pytest.fixture(scope="module")
+def model(run: Path, data: Path) -> Path:
+    export(run, data / "models" / "tiny.onnx", test=data / "test", command="pytest")
+    return data / "models" / "tiny.onnx"
+
+
+def test_training_writes_its_artifacts_and_learns(run: Path) -> None:
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert {"train_seconds", "val_metrics", "history", "best_epoch"} <= set(metrics)
+    assert (run / "loss.png").stat().st_size > 1000 and (run / "checkpoint.pt").exists()
+    history = metrics["history"]
+    assert history[-1]["train_loss"] < history[0]["train_loss"]
+    assert metrics["val_metrics"]["pearson_r_mean"] > 0.8
+
+
+def test_training_is_reproducible_for_a_seed(run: Path, data: Path) -> None:
+    config = TrainConfig(
+        task="strips",
+        data=str(data / "train"),
+        val=str(data / "val"),
+        out=str(data / "again"),
+        epochs=3,
+        batch_size=64,
+        seed=5,
+        threads=1,
+    )
+    train(config, progress=False)
+    a, b = load_run(run)["state_dict"], load_run(data / "again")["state_dict"]
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_killed_training_resumes_to_the_same_weights(run: Path, data: Path) -> None:
+    out = data / "killed"
+    argv = [
+        "train",
+        *TRAIN_ARGS,
+        "--data",
+        str(data / "train"),
+        "--val",
+        str(data / "val"),
+        "--out",
+        str(out),
+        "--quiet",
+    ]
+    code = "import sys; from tactile_learn.cli import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", code, *argv])
+    deadline = time.monotonic() + 120
+    while not (out / "checkpoint.pt").exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.01)
+    time.sleep(0.3)  # into the second epoch
+    os.kill(proc.pid, signal.SIGKILL)
+    assert proc.wait() == -signal.SIGKILL, "training finished before it could be killed"
+    assert not (out / "model.pt").exists()
+    resumed = subprocess.run([sys.executable, "-c", code, *argv, "--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    a, b = load_run(run)["state_dict"], load_run(out)["state_dict"]
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+
+def test_export_parity_card_and_runtime(model: Path, run: Path, data: Path) -> None:
+    card = json.loads(model.with_suffix(".json").read_text())
+    assert card["task"] == "strips" and card["opset"] >= 17
+    assert card["inputs"][0]["shape"] == ["batch", 10] and card["outputs"][0]["shape"] == ["batch", 5, 5]
+    assert card["parity"]["rel_err_b1"] <= PARITY_TOL and card["parity"]["rel_err_b7"] <= PARITY_TOL
+    assert card["metrics"]["heldout"]["command"] == "pytest"
+    assert card["metrics"]["heldout"]["data"]["seed"] == 3
+    saved = load_run(run)
+    scene = load_scene("strips5")
+    from tactile_learn.tasks import get_task
+
+    net = get_task("strips").build_net(saved["size"], scene, saved["stats"])
+    net.load_state_dict(saved["state_dict"])
+    readings = np.load(data / "test" / "shard-00000.readings.npy")
+    expected = TorchEstimator(net, "strips", scene).predict(readings)
+    for threads in (1, 2):
+        got = OnnxEstimator(model, threads=threads).predict(readings)
+        assert np.abs(got - expected).max() <= PARITY_TOL * (expected.max() - expected.min())
+    for batch in (0, 1, 7):
+        assert OnnxEstimator(model).predict(readings[:batch]).shape == (batch, 5, 5)
+
+
+def test_runtime_refuses_bad_models_and_inputs(model: Path, tmp_path: Path) -> None:
+    est = OnnxEstimator(model)
+    with pytest.raises(InputError, match="expected shape"):
+        est.predict(np.full((2, 32), 0.3, np.float32))
+    with pytest.raises(InputError, match="NaN"):
+        est.predict(np.full((2, 10), np.nan, np.float32))
+    blob = model.read_bytes()
+    card = json.loads(model.with_suffix(".json").read_text())
+    cases = {
+        "truncated": (blob[: len(blob) // 2], card, "checksum differs"),
+        "empty": (b"", card, "empty"),
+        "no card": (blob, None, "model card not found"),
+        "other card": (blob, {**card, "scene_digest": "0" * 16}, "scene"),
+        "corrupt card": (blob, "{", "corrupt model card"),
+    }
+    for label, (onnx_bytes, card_data, fragment) in cases.items():
+        path = tmp_path / f"{label.replace(' ', '_')}.onnx"
+        path.write_bytes(onnx_bytes)
+        if card_data is not None:
+            text = card_data if isinstance(card_data, str) else json.dumps(card_data)
+            path.with_suffix(".json").write_text(text)
+        with pytest.raises(ModelError, match=fragment):
+            OnnxEstimator(path).predict(np.full((1, 10), 0.3, np.float32))
+    # a corrupt graph whose card was rewritten to match it: onnxruntime's own refusal, named
+    garbage = tmp_path / "garbage.onnx"
+    garbage.write_bytes(b"\x08\x07" + os.urandom(200))
+    from synth.io import sha256_file
+
+    garbage.with_suffix(".json").write_text(json.dumps({**card, "model_sha256": sha256_file(garbage)}))
+    with pytest.raises(ModelError, match="cannot load"):
+        OnnxEstimator(garbage).predict(np.full((1, 10), 0.3, np.float32))
+
+
+def test_runtime_and_eval_work_without_torch(model: Path, data: Path) -> None:
+    """A deployment has numpy + onnxruntime only: block torch and run both the API and the CLI."""
+    code = f"""
+import sys, json
+sys.modules["torch"] = None  # any 'import torch' now raises ImportError
+import numpy as np
+from tactile_learn.runtime import OnnxEstimator
+readings = np.load({str(data / "test" / "shard-00000.readings.npy")!r})
+print(OnnxEstimator({str(model)!r}).predict(readings[:3]).shape)
+from tactile_learn.cli import main
+code = main(["eval", "--task", "strips", "--data", {str(data / "test")!r}, "--method", {str(model)!r}])
+assert "torch" not in [m for m in sys.modules if sys.modules[m] is not None], "torch was imported"
+sys.exit(code)
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "(3, 5, 5)" in result.stdout and '"pearson_r_mean"' in result.stdout
