@@ -30,7 +30,7 @@ test: lint
 
 # Longer property-based profile: many more hypothesis examples per test, with a summary.
 stress: $(STAMP)
-	TACTILE_STRESS=1 $(BIN)/python -m pytest -q -m stress -p no:randomly
+	TACTILE_STRESS=1 $(BIN)/python -m pytest -q -m stress
 
 bench: $(STAMP)
 	$(BIN)/tactile-learn bench --task all --json results/bench.json --plot results/bench.png

@@ -30,8 +30,7 @@ from typing import Any
 import numpy as np
 
 from synth import __version__
-from synth.dataset import simulate_shard
-from synth.io import atomic_save_npz
+from synth.dataset import generate
 from synth.scene import Scene, available_scenes, load_scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.methods import shipped_models
@@ -110,16 +109,23 @@ def time_predict(
 
 
 def _bench_data(task_name: str, scene: Scene | None, n: int, data: str | None) -> EvalData:
-    """Frames to benchmark on: ``data`` (with its own scene unless one is given), else fresh frames."""
+    """Frames to benchmark on: ``data`` (with its own scene unless one is given), else a fresh
+    dataset of the task's scene on a seed no training or validation set uses."""
     task = get_task(task_name)
     if data:
         return task.load_eval_data(data, scene).subset(slice(0, n))
     scene = scene or load_scene(task.default_scene)
-    arrays = simulate_shard(scene, BENCH_SEED, 0, n)
-    tmp = tempfile.mkdtemp(prefix="tl-bench-")
-    path = Path(tmp) / "frames.npz"
-    atomic_save_npz(path, arrays)
-    return task.load_eval_data(path, scene)
+    with tempfile.TemporaryDirectory(prefix="tl-bench-") as tmp:
+        generate(scene, n, BENCH_SEED, Path(tmp) / "frames")
+        frames = task.load_eval_data(Path(tmp) / "frames", scene)
+        # in memory before the folder goes: memory-mapped shards would dangle
+        return EvalData(
+            inputs=np.array(frames.inputs),
+            truth={k: np.array(v) for k, v in frames.truth.items()},
+            scene=frames.scene,
+            extra={k: np.array(v) for k, v in frames.extra.items()},
+            source=f"{scene.name} seed {BENCH_SEED}",
+        )
 
 
 def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[[], Estimator]]]:
@@ -183,16 +189,20 @@ def _torch_model(weights: Path, card: dict[str, Any]) -> Estimator:
 def bench_task(
     task_name: str,
     *,
-    n_frames: int = 2000,
+    n_frames: int | None = None,
     repeats: int = 300,
     budget_s: float = 3.0,
     scene_name: str | None = None,
     data: str | None = None,
     methods: list[str] | None = None,
     progress: Callable[[str], None] | None = None,
+    reference: bool = False,
 ) -> dict[str, Any]:
+    """Benchmark every method of ``task_name`` on the same frames (``n_frames`` samples, default
+    the task's ``bench_samples``); ``reference`` adds the task's method-independent metrics."""
     task = get_task(task_name)
-    frames = _bench_data(task_name, load_scene(scene_name) if scene_name else None, n_frames, data)
+    n = n_frames or task.bench_samples
+    frames = _bench_data(task_name, load_scene(scene_name) if scene_name else None, n, data)
     scene = frames.scene
     entries: list[tuple[str, Callable[[], Estimator]]] = [
         (name, partial(factory, scene)) for name, factory in task.classical_methods().items()
@@ -208,7 +218,7 @@ def bench_task(
         start = time.perf_counter()
         metrics = task.evaluate(est, frames)
         eval_seconds = time.perf_counter() - start
-        timing = time_predict(est.predict, frames.inputs, repeats=repeats, budget_s=budget_s)
+        timing = time_predict(est.predict, task.latency_inputs(frames), repeats=repeats, budget_s=budget_s)
         results.append(
             {
                 "name": label,
@@ -219,7 +229,7 @@ def bench_task(
                 **timing,
             }
         )
-    return {
+    result: dict[str, Any] = {
         "task": task_name,
         "scene": scene.name,
         "scene_digest": scene.digest,
@@ -228,6 +238,9 @@ def bench_task(
         "methods": results,
         "ratios": ratios(task_name, results),
     }
+    if reference:
+        result["reference_metrics"] = task.reference_metrics(frames)
+    return result
 
 
 def ratios(task_name: str, results: list[dict[str, Any]]) -> dict[str, Any]:

@@ -56,6 +56,9 @@ def markdown(result: dict[str, Any]) -> str:
             f"{m['throughput_fps_b1024']:,.0f}",
         ]
         lines.append("| " + " | ".join(cells) + " |")
+    reference = result.get("reference_metrics")
+    if reference:
+        lines += ["", "Reference (independent of the method): " + _fmt(reference)]
     ratios = {k: v for k, v in result.get("ratios", {}).items() if isinstance(v, dict)}
     if ratios:
         lines += [
@@ -110,9 +113,16 @@ def pareto_plot(results: list[dict[str, Any]], path: str | Path) -> bool:
         )
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
+    save_figure(fig, path, dpi=110)
+    return True
+
+
+def save_figure(fig: Any, path: str | Path, dpi: int = 100) -> None:
+    """Write a matplotlib figure as PNG atomically, and close it."""
+    import matplotlib.pyplot as plt
+
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110)
+    fig.savefig(buffer, format="png", dpi=dpi)
     plt.close(fig)
     with atomic_open(path, "wb") as handle:
         handle.write(buffer.getvalue())
-    return True

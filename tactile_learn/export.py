@@ -47,7 +47,7 @@ def _probe_inputs(task_name: str, scene: Scene, n: int, seed: int = 12345) -> np
     """Realistic inputs for the parity check: freshly simulated frames of the model's scene."""
     task = get_task(task_name)
     arrays = simulate_shard(scene, seed, 0, n)
-    return task.check_inputs(arrays[task.input_key], scene)
+    return task.check_inputs(task.example_inputs(arrays, scene), scene)
 
 
 def parity_check(net: torch.nn.Module, onnx_path: Path, inputs: np.ndarray, threads: int = 1) -> dict[str, float]:

@@ -104,6 +104,8 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+
+        from tactile_learn.bench_report import save_figure
     except ImportError:  # plotting is an optional extra
         return False
     epochs = [h["epoch"] for h in history]
@@ -113,11 +115,7 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
     ax[1].plot(epochs, [h["val"][metric] for h in history], marker="o", color="C1")
     ax[1].set(xlabel="epoch", ylabel=metric, title=f"validation {metric}")
     fig.tight_layout()
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=100)
-    plt.close(fig)
-    with atomic_open(path, "wb") as handle:
-        handle.write(buffer.getvalue())
+    save_figure(fig, path)
     return True
 
 
@@ -150,7 +148,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     out.mkdir(parents=True, exist_ok=True)
 
     torch.manual_seed(config.seed)
-    stats = task.fit_stats(train_set.arrays(list(task.train_keys), limit=20000), scene)
+    stats = task.fit_stats(train_set.arrays(list(task.train_keys), limit=task.stats_limit), scene)
     net = task.build_net(size, scene, stats)
     optimizer = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)

@@ -40,3 +40,49 @@ def rng() -> np.random.Generator:
 def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.chdir(tmp_path)
     return tmp_path
+
+
+# ---- `make stress` summary: hypothesis cases tried and failed, per test module ------------------
+
+_CASES: dict[str, dict[str, int]] = {}
+_CURRENT: dict[str, str] = {}
+
+
+def _category(nodeid: str) -> str:
+    module = Path(nodeid.split("::")[0]).stem
+    return module.removeprefix("test_")
+
+
+def _count_case(observation: object) -> None:
+    if getattr(observation, "type", None) != "test_case":
+        return
+    category = _CURRENT.get("category", "other")
+    counts = _CASES.setdefault(category, {"tried": 0, "failed": 0})
+    counts["tried"] += 1
+    if getattr(observation, "status", "") == "failed":
+        counts["failed"] += 1
+
+
+if os.environ.get("TACTILE_STRESS"):
+    from hypothesis.internal.observability import add_observability_callback
+
+    add_observability_callback(_count_case)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> object:
+    _CURRENT["category"] = _category(item.nodeid)
+    yield
+
+
+def pytest_terminal_summary(terminalreporter: object, exitstatus: int) -> None:
+    if not _CASES:
+        return
+    write = terminalreporter.write_line  # type: ignore[attr-defined]
+    write("")
+    write("stress summary (hypothesis cases per category)")
+    for category, counts in sorted(_CASES.items()):
+        write(f"  {category:28s} {counts['tried']:7d} cases tried, {counts['failed']} failures")
+    total = sum(c["tried"] for c in _CASES.values())
+    failed = sum(c["failed"] for c in _CASES.values())
+    write(f"  {'total':28s} {total:7d} cases tried, {failed} failures")

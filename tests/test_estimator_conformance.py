@@ -22,7 +22,7 @@ def sample(task: str) -> tuple[Scene, np.ndarray]:
     t = get_task(task)
     scene = load_scene(t.default_scene)
     arrays = simulate_shard(scene, 777, 0, 12)
-    return scene, np.asarray(arrays[t.input_key], dtype=np.float32)
+    return scene, np.asarray(t.example_inputs(arrays, scene), dtype=np.float32)[:24]
 
 
 def make(task: str, method: str) -> tuple[Estimator, np.ndarray]:

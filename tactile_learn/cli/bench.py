@@ -32,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", default=None, help="evaluate on this dataset instead of fresh frames")
     parser.add_argument("--scene", default=None, help="scene (default: the task's)")
     parser.add_argument("--method", action="append", default=None, help="only these methods (repeatable)")
+    parser.add_argument("--reference", action="store_true", help="add reference metrics (thermal: the oracle; slow)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,15 +40,18 @@ def run(args: argparse.Namespace) -> int:
     from tactile_learn.bench_report import markdown, pareto_plot
 
     tasks = ["strips", "thermal", "fsr", "simulator"] if args.task == "all" else [args.task]
-    n = args.n or (500 if args.quick else 2000)
     results: list[dict[str, Any]] = []
     for task in tasks:
         if task == "simulator":
             result = bench_simulator(quick=args.quick)
         else:
+            from tactile_learn.tasks import get_task
+
+            default_n = get_task(task).bench_samples
             result = bench_task(
                 task,
-                n_frames=n,
+                n_frames=args.n or (max(1, default_n // 4) if args.quick else default_n),
+                reference=args.reference,
                 repeats=100 if args.quick else 400,
                 budget_s=1.0 if args.quick else 4.0,
                 scene_name=args.scene,

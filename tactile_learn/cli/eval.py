@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", default=None, help="also write the result to this JSON file")
     parser.add_argument("--limit", type=positive_int, default=None, help="evaluate only the first N frames")
     parser.add_argument("--threads", type=positive_int, default=1, help="onnxruntime threads (default 1)")
+    parser.add_argument(
+        "--reference", action="store_true", help="add method-independent reference metrics (thermal: the oracle; slow)"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -44,6 +47,8 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     metrics = task.evaluate(estimator, data)
     elapsed = time.perf_counter() - start
+    if args.reference:
+        metrics.update(task.reference_metrics(data))
     result = {
         "task": args.task,
         "method": estimator.name or args.method,

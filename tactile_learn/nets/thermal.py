@@ -31,8 +31,13 @@ __all__ = ["BASE", "SIZES", "ThermalNet", "build_thermal_net", "thermal_loss"]
 
 #: samples averaged for the baseline
 BASE = 8
-#: size -> (channels, stages, hidden width)
-SIZES: dict[str, tuple[int, int, int]] = {"small": (24, 4, 96), "large": (48, 4, 192)}
+#: size -> (channels, stages, hidden width, a second convolution per stage)
+SIZES: dict[str, tuple[int, int, int, bool]] = {
+    "tiny": (16, 4, 64, False),
+    "small": (24, 4, 96, False),
+    "medium": (24, 4, 96, True),
+    "large": (48, 4, 192, True),
+}
 #: floor of the peak magnitude (K) in the shape channel: keeps the division finite on flat curves
 _AMP_FLOOR_K = 0.05
 
@@ -44,17 +49,14 @@ class ThermalNet(nn.Module):
 
     def __init__(self, window: int, n_classes: int, scale_k: float, size: str) -> None:
         super().__init__()
-        channels, stages, hidden = SIZES[size]
+        channels, stages, hidden, double = SIZES[size]
         self.register_buffer("scale", torch.tensor(float(scale_k)))
         layers: list[nn.Module] = [nn.Conv1d(2, channels, 5, padding=2), nn.GELU()]
         length = window
         for _ in range(stages):
-            layers += [
-                nn.Conv1d(channels, channels, 5, padding=2, stride=2),
-                nn.GELU(),
-                nn.Conv1d(channels, channels, 3, padding=1),
-                nn.GELU(),
-            ]
+            layers += [nn.Conv1d(channels, channels, 5, padding=2, stride=2), nn.GELU()]
+            if double:
+                layers += [nn.Conv1d(channels, channels, 3, padding=1), nn.GELU()]
             length = (length - 1) // 2 + 1
         self.conv = nn.Sequential(*layers)
         self.head = nn.Sequential(
@@ -72,7 +74,7 @@ class ThermalNet(nn.Module):
         shape = drop / (amp + _AMP_FLOOR_K / self.scale)
         h = self.conv(torch.stack([drop, shape], dim=1))
         log_amp = torch.log(amp * self.scale + _AMP_FLOOR_K)  # argument >= 0.05 K
-        return self.head(torch.cat([h.flatten(1), log_amp], dim=1))  # type: ignore[no-any-return]
+        return self.head(torch.cat([h.flatten(1), log_amp], dim=1))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return torch.softmax(self.logits(x), dim=1)

@@ -17,7 +17,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from synth.scene import Scene
+from synth.dataset import Dataset, load_arrays
+from synth.errors import DataError
+from synth.scene import Scene, load_scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.validation import as_batch
 
@@ -73,6 +75,10 @@ class Task(ABC):
     net_sizes: ClassVar[tuple[str, ...]] = ()
     #: training epochs when the user names none (the default run must reach the task's floors)
     default_epochs: ClassVar[int] = 30
+    #: training samples read to compute the normalisation statistics
+    stats_limit: ClassVar[int] = 20000
+    #: held-out samples the benchmark simulates by default (its --quick run takes a quarter)
+    bench_samples: ClassVar[int] = 2000
 
     @property
     def train_keys(self) -> tuple[str, ...]:
@@ -80,6 +86,17 @@ class Task(ABC):
         return (self.input_key, *self.truth_keys)
 
     # ---- data and evaluation (numpy only) ----------------------------------------------------
+
+    def read_arrays(self, source: str | Path, scene: Scene | None) -> tuple[dict[str, np.ndarray], Scene]:
+        """Arrays and scene of a generated dataset folder (its own scene unless one is given) or an
+        ``.npz`` file (the given scene, else the task's default)."""
+        path = Path(source)
+        if path.is_dir():
+            dataset = Dataset(path)
+            if dataset.scene.task != self.name:
+                raise DataError(f"{path}: dataset is for task {dataset.scene.task!r}, not {self.name!r}")
+            return dataset.arrays(), scene or dataset.scene
+        return load_arrays(path), scene or load_scene(self.default_scene)
 
     @abstractmethod
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
@@ -96,6 +113,19 @@ class Task(ABC):
     @abstractmethod
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
         """Metrics of predictions ``pred`` (what ``predict`` returned for ``data.inputs``)."""
+
+    def example_inputs(self, arrays: dict[str, np.ndarray], scene: Scene) -> np.ndarray:
+        """Estimator inputs from simulated dataset arrays (default: the ``input_key`` array). A task
+        whose dataset stores whole recordings (thermal: a touch of 16 pixels) cuts them here."""
+        return np.asarray(arrays[self.input_key], dtype=np.float32)
+
+    def latency_inputs(self, data: EvalData) -> np.ndarray:
+        """Single frames the benchmark times ``predict`` on (default: ``data.inputs``)."""
+        return data.inputs
+
+    def reference_metrics(self, data: EvalData, limit: int | None = None) -> dict[str, Any]:
+        """Method-independent metrics of ``data`` (thermal: the oracle's accuracy); default none."""
+        return {}
 
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
         """Validated float32 batch for ``predict`` (every estimator, classical or ONNX, calls this).

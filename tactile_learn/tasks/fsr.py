@@ -47,10 +47,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from synth.config import dumps_toml
-from synth.dataset import Dataset, load_arrays
 from synth.errors import DataError
 from synth.io import atomic_write_text
-from synth.scene import Scene, load_scene
+from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks.base import EvalData, Task
@@ -220,15 +219,7 @@ class FsrTask(Task):
 
     def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
         path = Path(source)
-        if path.is_dir():
-            dataset = Dataset(path)
-            if dataset.scene.task != self.name:
-                raise DataError(f"{path}: dataset is for task {dataset.scene.task!r}, not {self.name!r}")
-            scene = scene or dataset.scene
-            arrays = dataset.arrays()
-        else:
-            arrays = load_arrays(path)
-            scene = scene or load_scene(self.default_scene)
+        arrays, scene = self.read_arrays(path, scene)
         if not isinstance(scene.sensor, fsr.FsrConfig):
             raise DataError(f"scene {scene.name!r} is not an FSR-film scene")
         missing = [k for k in ("readings", "xy_mm", "force_n") if k not in arrays]

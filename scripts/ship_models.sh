@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# Rebuild every shipped model in models/ from scratch, on CPU: datasets in data/, runs in runs/
+# (both git-ignored). Each card in models/ records the held-out metrics and the command that
+# measured them. Run from the repository root after `make demo` (or any install of the project).
+#   scripts/ship_models.sh [strips16|strips5|fsr|thermal|thermal_wns ...]   (default: all)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+TL=${TL:-.venv/bin/tactile-learn}
+
+data() {  # scene, n, seed, folder
+  $TL generate --scene "$1" --n "$2" --seed "$3" --out "data/$4" --workers 2 --quiet
+}
+
+ship() {  # run, model name, test folder
+  $TL export "runs/$1" --out "models/$2.onnx" --test "data/$3"
+}
+
+strips16() {
+  data strips16 200000 1 strips16-train; data strips16 4000 2 strips16-val; data strips16 4000 3 strips16-test
+  $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16 --quiet
+  ship strips16 strips16 strips16-test
+}
+
+strips5() {
+  data strips5 100000 1 strips5-train; data strips5 4000 2 strips5-val; data strips5 4000 3 strips5-test
+  $TL train --task strips --data data/strips5-train --val data/strips5-val --out runs/strips5 --epochs 10 --quiet
+  ship strips5 strips5 strips5-test
+}
+
+fsr() {
+  data fsr6 400000 1 fsr-train; data fsr6 5000 2 fsr-val; data fsr6 20000 3 fsr-test
+  $TL train --task fsr --data data/fsr-train --val data/fsr-val --out runs/fsr --size large --epochs 30 --threads 1 --quiet
+  ship fsr fsr fsr-test
+}
+
+thermal() {
+  data thermal 80000 1 thermal-train; data thermal 1000 2 thermal-val; data thermal 300 11 thermal-test
+  $TL train --task thermal --data data/thermal-train --val data/thermal-val --out runs/thermal --size small --epochs 20 --threads 1 --quiet
+  ship thermal thermal thermal-test
+}
+
+thermal_wns() {
+  data thermal_wns 30000 1 thermal_wns-train; data thermal_wns 1000 2 thermal_wns-val; data thermal_wns 300 12 thermal_wns-test
+  $TL train --task thermal --data data/thermal_wns-train --val data/thermal_wns-val --out runs/thermal_wns --epochs 20 --threads 1 --quiet
+  ship thermal_wns thermal_wns thermal_wns-test
+}
+
+mkdir -p data runs models
+for target in "${@:-strips16 strips5 fsr thermal thermal_wns}"; do
+  for t in $target; do
+    echo "=== $t"
+    "$t"
+  done
+done

@@ -1,0 +1,501 @@
+"""The thermal fingertip task (issue 4): one pixel's temperature curve -> material.
+
+Input ``readings`` (B, W): one thermistor's temperatures (degC) over the last ``W = window_s * fs``
+samples, ending "now"; the contact onset is somewhere inside (the 4 x 4 array is classified pixel
+by pixel: every pixel's curve is one row). Output ``probabilities`` (B, K + 1): the scene's K
+materials, then ``none`` (the pixel touches nothing).
+
+Views by contact duration. A generated touch keeps its whole record (``readings`` (P, R)) and its
+onset; the view at duration ``d`` is the window that ends at the last sample with
+``t <= onset + d`` (padded on the left with the record's first sample if the record starts later
+than the window). :meth:`ThermalTask.evaluate` predicts every view ``d`` in :data:`DURATIONS_S`:
+
+- ``accuracy``: material accuracy over pixels in contact, pooled over the four views;
+- ``accuracy_by_duration``, ``family_accuracy_by_duration``, ``contact_accuracy_by_duration``
+  (keys ``"0.25"``, ``"0.5"``, ``"1.0"``, ``"2.0"``); family = metal, stone/glass, polymer, wood,
+  foam; contact accuracy = touching vs ``none`` over every pixel;
+- ``confusion_pairs``: the most frequent (true, predicted) material errors pooled over the views,
+  with their nominal effusivities;
+- ``per_material_accuracy``: at 1 s.
+
+The oracle (the physics fit given each pixel's true sensor parameters) is not an estimator (it
+needs the truth): :func:`oracle_accuracy_by_duration` computes ``oracle_accuracy_by_duration`` for
+the same data; ``eval``/``bench`` call it and add the key beside the method's metrics.
+
+Evaluation data: a generated dataset folder, an ``.npz`` (``readings`` (B, R) or (B, P, R) in
+degC at the scene's rate, labels ``latent_material`` (int index, -1 = none) or ``material``
+(names), optional ``latent_onset_s``/``onset_s``), or a recording directory
+(:mod:`tactile_learn.thermal_recordings`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from synth.config import dumps_toml
+from synth.dataset import Dataset, load_arrays
+from synth.errors import ConfigError, DataError, InputError
+from synth.io import atomic_write_text
+from synth.materials import Material
+from synth.scene import Scene, load_scene
+from synth.sensors.thermal import ThermalConfig
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.tasks.base import EvalData, Task
+from tactile_learn.validation import as_batch
+
+if TYPE_CHECKING:
+    import torch
+
+__all__ = [
+    "DURATIONS_S",
+    "ThermalTask",
+    "class_names",
+    "labels_from_materials",
+    "oracle_accuracy_by_duration",
+    "thermal_metrics",
+    "view",
+    "windows",
+]
+
+#: contact durations (s) of the evaluation views
+DURATIONS_S: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0)
+NONE = "none"
+#: training windows end this long after onset at least / before the window's start at most
+_TRAIN_MIN_S = 0.1
+_TRAIN_BASE_S = 0.2
+#: pixels drawn per touch in a training batch
+_TRAIN_PIXELS = 4
+
+
+def _config(scene: Scene) -> ThermalConfig:
+    if not isinstance(scene.sensor, ThermalConfig):
+        raise DataError(f"scene {scene.name!r} is not a thermal scene (task {scene.task!r})")
+    return scene.sensor
+
+
+def class_names(scene: Scene) -> tuple[str, ...]:
+    """The prediction's classes: the scene's materials, then ``none``."""
+    return (*(m.name for m in _config(scene).material_list), NONE)
+
+
+def labels_from_materials(material_index: np.ndarray, n_materials: int) -> np.ndarray:
+    """Class labels (int64): the material index, ``n_materials`` (``none``) where it is -1."""
+    idx = np.asarray(material_index).astype(np.int64)
+    return np.where(idx < 0, n_materials, idx)
+
+
+def windows(records: np.ndarray, lengths: np.ndarray, end: np.ndarray, width: int) -> np.ndarray:
+    """(N, width) windows of ``records`` (N, R) ending before sample ``end`` (exclusive), clipped to
+    each record's valid ``lengths`` (samples before 0 repeat the first one, after the end the last)."""
+    idx = np.asarray(end)[:, None] - width + np.arange(width)[None, :]
+    idx = np.clip(idx, 0, np.asarray(lengths)[:, None] - 1)
+    return np.take_along_axis(records, np.clip(idx, 0, records.shape[1] - 1), axis=1).astype(np.float32)
+
+
+def view(data: EvalData, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The view of ``data`` at contact duration ``duration_s``: windows (N, W) and a mask of the rows
+    whose record reaches ``onset + duration_s``."""
+    cfg = _config(data.scene)
+    fs = cfg.readout.sampling_hz
+    record, length, onset = data.extra["record"], data.extra["length"], data.extra["onset_s"]
+    end = np.floor((onset.astype(np.float64) + duration_s) * fs + 1e-9).astype(np.int64) + 1
+    valid = end <= length
+    return windows(record, length, np.minimum(end, length), cfg.window_samples), valid
+
+
+def thermal_metrics(pred: np.ndarray, labels: np.ndarray, materials: tuple[Material, ...]) -> dict[str, Any]:
+    """Accuracy (material, over pixels in contact), family and contact accuracy, per-material
+    accuracy and the confusion counts of predictions ``pred`` (B, K + 1) against ``labels`` (B,)."""
+    k = len(materials)
+    guess = np.asarray(pred).argmax(axis=1) if len(pred) else np.zeros(0, dtype=np.int64)
+    labels = np.asarray(labels).astype(np.int64)
+    family = np.array([m.family_index for m in materials] + [-1])
+    contact = labels < k
+    n = int(contact.sum())
+    right = guess[contact] == labels[contact]
+    out: dict[str, Any] = {
+        "accuracy": float(right.mean()) if n else float("nan"),
+        "family_accuracy": float((family[guess[contact]] == family[labels[contact]]).mean()) if n else float("nan"),
+        "contact_accuracy": float(((guess < k) == contact).mean()) if len(labels) else float("nan"),
+        "n_contact": n,
+        "n_none": int((~contact).sum()),
+    }
+    per = {}
+    for i, m in enumerate(materials):
+        sel = labels == i
+        if sel.any():
+            per[m.name] = float((guess[sel] == i).mean())
+    out["per_material_accuracy"] = per
+    counts = np.zeros((k + 1, k + 1), dtype=np.int64)
+    np.add.at(counts, (labels, guess), 1)
+    out["confusion"] = counts
+    return out
+
+
+def _confusion_pairs(counts: np.ndarray, materials: tuple[Material, ...], top: int = 12) -> list[dict[str, Any]]:
+    names = [m.name for m in materials] + [NONE]
+    eff = [m.effusivity for m in materials] + [0.0]
+    totals = counts.sum(axis=1)
+    pairs: list[dict[str, Any]] = []
+    for i in range(len(materials)):
+        for j in range(len(names)):
+            if i != j and counts[i, j] > 0:
+                pairs.append(
+                    {
+                        "true": names[i],
+                        "predicted": names[j],
+                        "count": int(counts[i, j]),
+                        "rate": float(counts[i, j] / totals[i]),  # totals[i] >= counts[i, j] > 0
+                        "effusivity_true": round(eff[i], 1),
+                        "effusivity_predicted": round(eff[j], 1),
+                    }
+                )
+    pairs.sort(key=lambda p: -p["count"])
+    return pairs[:top]
+
+
+def _key(d: float) -> str:
+    return f"{d:g}" if d != int(d) else f"{d:.1f}"
+
+
+class ThermalTask(Task):
+    name = "thermal"
+    default_scene = "thermal"
+    input_key = "readings"
+    output_key = "probabilities"
+    truth_keys = ("latent_material", "latent_onset_s", "latent_release_s")
+    primary_metric = ("accuracy", True)
+    net_sizes = ("tiny", "small", "medium", "large")
+    default_epochs = 40
+    stats_limit = 2000  # whole touches (16 pixels x a full record each): 2,000 are plenty
+    bench_samples = 200  # touches: 3,200 pixel curves, each viewed at four contact durations
+
+    def input_shape(self, scene: Scene) -> tuple[int, ...]:
+        return (_config(scene).window_samples,)
+
+    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
+        """Shape, NaN/inf, and the ADC's range: a reading at either end of ``adc_range_c`` is
+        saturated; below a range starting at 0 degC it is a negative (invalid) reading."""
+        lo, hi = _config(scene).readout.adc_range_c
+        x = as_batch(
+            inputs,
+            self.input_shape(scene),
+            name="readings",
+            allow_negative=lo < 0,
+            upper=hi,
+            upper_name="the ADC's top (degC)",
+        )
+        if x.size and (x <= lo).any():
+            row = int(np.argwhere(x <= lo)[0][0])
+            raise InputError(f"readings: saturated reading at or below the ADC's bottom ({lo:g} degC) in frame {row}")
+        return x
+
+    def example_inputs(self, arrays: dict[str, np.ndarray], scene: Scene) -> np.ndarray:
+        """Estimator inputs from simulated dataset arrays (``readings`` (B, P, R) and the latents):
+        every pixel's window at 1 s of contact, (B * P, W). (The generic machinery's probe and
+        conformance inputs; ``arrays["readings"]`` itself is a whole record, not an input.)"""
+        data = self._from_arrays(arrays, scene, "<arrays>")
+        return view(data, 1.0)[0]
+
+    def latency_inputs(self, data: EvalData) -> np.ndarray:
+        """One pixel's window at 1 s of contact per frame: what a deployed classifier is fed."""
+        return view(data, 1.0)[0]
+
+    def reference_metrics(self, data: EvalData, limit: int | None = None) -> dict[str, Any]:
+        """Metrics that do not depend on the method: the oracle's (see
+        :func:`oracle_accuracy_by_duration`); empty when ``data`` lacks the sensor's latents."""
+        if "latent_heat_capacity_j_m2k" not in data.extra:
+            return {}
+        return oracle_accuracy_by_duration(data, limit)
+
+    def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
+        from tactile_learn.estimators.classical.curve_match import CurveMatchEstimator
+        from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
+
+        return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}
+
+    # ---- evaluation data -----------------------------------------------------------------------
+
+    def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
+        from tactile_learn.thermal_recordings import INDEX
+
+        path = Path(source)
+        if path.is_dir() and (path / INDEX).is_file():
+            return self._from_recordings(path, scene or load_scene(self.default_scene))
+        if path.is_dir():
+            dataset = Dataset(path)
+            if dataset.scene.task != self.name:
+                raise DataError(f"{path}: dataset is for task {dataset.scene.task!r}, not {self.name!r}")
+            arrays = dataset.arrays()
+            scene = scene or dataset.scene
+        else:
+            arrays = load_arrays(path)
+            scene = scene or load_scene(self.default_scene)
+        return self._from_arrays(arrays, scene, str(path))
+
+    def _from_arrays(self, arrays: dict[str, np.ndarray], scene: Scene, source: str) -> EvalData:
+        cfg = _config(scene)
+        if "readings" not in arrays:
+            raise DataError(f"{source}: needs an array 'readings' (B, R) or (B, P, R) of temperatures (degC)")
+        readings = np.asarray(arrays["readings"])
+        if readings.ndim == 2:
+            readings = readings[:, None, :]
+        if readings.ndim != 3 or readings.shape[2] < 2:
+            raise DataError(f"{source}: readings have shape {readings.shape}, expected (B, R) or (B, P, R)")
+        b, p, r = readings.shape
+        k = len(cfg.material_list)
+        if "latent_material" in arrays:
+            mat = np.asarray(arrays["latent_material"]).reshape(b, -1)
+        elif "material" in arrays:
+            names = [m.name for m in cfg.material_list]
+            raw = np.asarray(arrays["material"]).reshape(b, -1)
+            unknown = sorted({str(v) for v in raw.ravel() if str(v) not in (*names, NONE, "")})
+            if unknown:
+                raise DataError(
+                    f"{source}: material(s) {', '.join(unknown)} not in the scene's list ({', '.join(names)})"
+                )
+            mat = np.array([[names.index(str(v)) if str(v) in names else -1 for v in row] for row in raw])
+        else:
+            raise DataError(
+                f"{source}: needs labels 'latent_material' (material index, -1 = none) or 'material' (names)"
+            )
+        if mat.shape != (b, p):
+            raise DataError(f"{source}: labels have shape {mat.shape}, readings {readings.shape} need {(b, p)}")
+        if mat.size and (mat.max() >= k or mat.min() < -1):
+            raise DataError(f"{source}: material indices must lie in [-1, {k - 1}] for scene {scene.name!r}")
+        records = readings.reshape(b * p, r).astype(np.float32)
+        onset_key = next((key for key in ("latent_onset_s", "onset_s") if key in arrays), None)
+        if onset_key is not None:
+            onset = np.broadcast_to(np.asarray(arrays[onset_key], dtype=np.float64).reshape(b, -1), (b, p)).ravel()
+        else:
+            onset = self._detect_onsets(records, cfg)
+        extra: dict[str, np.ndarray] = {
+            "record": records,
+            "length": np.full(b * p, r, dtype=np.int64),
+            "onset_s": onset.astype(np.float64),
+            "touch": np.repeat(np.arange(b), p),
+            "pixel": np.tile(np.arange(p), b),
+        }
+        for key, value in arrays.items():
+            if key.startswith("latent_") and np.asarray(value).shape[:2] == (b, p):
+                extra[key] = np.asarray(value).reshape(b * p, *np.asarray(value).shape[2:])
+        labels = labels_from_materials(mat.ravel(), k)
+        data = EvalData(
+            inputs=np.zeros((b * p, 0), np.float32), truth={"label": labels}, scene=scene, extra=extra, source=source
+        )
+        data.inputs = view(data, max(DURATIONS_S))[0]
+        return data
+
+    def _detect_onsets(self, records: np.ndarray, cfg: ThermalConfig) -> np.ndarray:
+        from tactile_learn.estimators.classical.curve_match import detect_onset
+
+        fs = cfg.readout.sampling_hz
+        onset = detect_onset(records, fs, cfg.readout.adc_step_k)
+        # the onset lies between the last baseline sample k0 and the next one
+        return np.where(onset.detected, (onset.index + 0.5) / fs, 0.0)
+
+    def _from_recordings(self, path: Path, scene: Scene) -> EvalData:
+        from tactile_learn.thermal_recordings import read_recordings, resample
+
+        cfg = _config(scene)
+        fs = cfg.readout.sampling_hz
+        names = [m.name for m in cfg.material_list]
+        touches = read_recordings(path, names)
+        series = [resample(t, fs) for t in touches]
+        r = max(len(s[0]) for s in series)
+        records = np.empty((len(series), r), dtype=np.float32)
+        lengths = np.empty(len(series), dtype=np.int64)
+        for i, (values, _) in enumerate(series):
+            records[i, : len(values)] = values
+            records[i, len(values) :] = values[-1]
+            lengths[i] = len(values)
+        detected = self._detect_onsets(records, cfg)
+        onset = np.array([detected[i] if s[1] is None else s[1] / fs for i, s in enumerate(series)])
+        k = len(names)
+        labels = np.array([names.index(t.material) if t.material else -2 for t in touches])
+        extra: dict[str, np.ndarray] = {
+            "record": records,
+            "length": lengths,
+            "onset_s": onset,
+            "labelled": labels >= 0,
+            "touch": np.arange(len(touches)),
+            "pixel": np.zeros(len(touches), dtype=np.int64),
+        }
+        data = EvalData(
+            inputs=np.zeros((len(touches), 0), np.float32),
+            truth={"label": np.where(labels >= 0, labels, k)},
+            scene=scene,
+            extra=extra,
+            source=str(path),
+        )
+        data.inputs = view(data, max(DURATIONS_S))[0]
+        # a record shorter than onset + 2 s is classified on what it has (its end)
+        return data
+
+    # ---- metrics -------------------------------------------------------------------------------
+
+    def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
+        materials = _config(data.scene).material_list
+        keep = data.extra.get("labelled", np.ones(len(data), dtype=bool))
+        out = thermal_metrics(np.asarray(pred)[keep], data.truth["label"][keep], materials)
+        out["confusion_pairs"] = _confusion_pairs(out.pop("confusion"), materials)
+        return out
+
+    def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
+        """Metrics of ``estimator`` on every duration view (see the module docstring)."""
+        if "record" not in data.extra:
+            return self.metrics(estimator.predict(data.inputs), data)
+        materials = _config(data.scene).material_list
+        keep_all = data.extra.get("labelled", np.ones(len(data), dtype=bool))
+        by: dict[str, dict[str, Any]] = {}
+        total = np.zeros((len(materials) + 1, len(materials) + 1), dtype=np.int64)
+        for d in DURATIONS_S:
+            x, valid = view(data, d)
+            keep = valid & keep_all
+            if not keep.any():
+                continue
+            m = thermal_metrics(estimator.predict(x[keep]), data.truth["label"][keep], materials)
+            total += m.pop("confusion")
+            by[_key(d)] = m
+        k = len(materials)
+        right = np.trace(total[:k, :k])
+        n_contact = total[:k].sum()
+        result: dict[str, Any] = {
+            "accuracy": float(right / n_contact) if n_contact else float("nan"),
+            "accuracy_by_duration": {d: m["accuracy"] for d, m in by.items()},
+            "family_accuracy_by_duration": {d: m["family_accuracy"] for d, m in by.items()},
+            "contact_accuracy_by_duration": {d: m["contact_accuracy"] for d, m in by.items()},
+            "n_contact_by_duration": {d: m["n_contact"] for d, m in by.items()},
+            "confusion_pairs": _confusion_pairs(total, materials),
+        }
+        if "1.0" in by:
+            result["per_material_accuracy"] = by["1.0"]["per_material_accuracy"]
+        return result
+
+    # ---- calibration ---------------------------------------------------------------------------
+
+    def calibrate(self, source: str | Path, out: str | Path, scene: Scene) -> dict[str, Any]:
+        """Fit the user's sensor (heat capacity, loss, heater, contact conductance range, noise,
+        ADC step, sampling rate) from labelled recordings; write a scene TOML for ``generate``."""
+        from tactile_learn.estimators.classical.physics_fit import calibrate_sensor
+        from tactile_learn.thermal_recordings import read_recordings
+
+        cfg = _config(scene)
+        touches = [t for t in read_recordings(source, [m.name for m in cfg.material_list]) if t.material]
+        if not touches:
+            raise DataError(f"{source}: no labelled touches to calibrate from")
+        fitted, summary = calibrate_sensor(touches, cfg)
+        calibrated = dataclasses.replace(
+            scene,
+            sensor=fitted,
+            name=f"{scene.name}_calibrated",
+            description=f"{scene.description} (sensor calibrated from {len(touches)} touches)".strip(),
+        )
+        header = "# Written by `tactile-learn calibrate --task thermal`: the sensor's own parameters.\n"
+        atomic_write_text(out, header + dumps_toml(calibrated.to_dict()))
+        try:  # the file must load back as a scene
+            load_scene(Path(out))
+        except ConfigError as exc:  # pragma: no cover - a bug in the calibration's ranges
+            raise DataError(f"{out}: the calibrated scene does not validate ({exc})") from None
+        return {"scene": str(out), "touches": len(touches), **summary}
+
+    # ---- learning (torch inside) ---------------------------------------------------------------
+
+    def fit_stats(self, arrays: dict[str, np.ndarray], scene: Scene) -> dict[str, Any]:
+        cfg = _config(scene)
+        readings = np.asarray(arrays["readings"][:2000], dtype=np.float64)
+        # typical size of a contact's temperature change: the spread of record minus its start
+        swing = np.abs(readings - readings[..., :1]).max(axis=-1)
+        touched = np.asarray(arrays["latent_material"][:2000]) >= 0
+        scale = float(np.median(swing[touched])) if touched.any() else 1.0
+        return {
+            "classes": list(class_names(scene)),
+            "window": cfg.window_samples,
+            "sampling_hz": cfg.readout.sampling_hz,
+            "scale_k": max(scale, 0.1),
+            "noise_k": cfg.readout.noise_k,
+        }
+
+    def training_batch(
+        self, arrays: dict[str, np.ndarray], scene: Scene, rng: np.random.Generator
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Windows of 4 random pixels of every touch, each ending a random time after its onset (log-uniform half of the
+        time, uniform the other half, 0.1 s up to the contact's end and at most ``window_s - 0.2``
+        s), plus a random offset of the whole curve (absolute temperature carries no label)."""
+        cfg = _config(scene)
+        fs = cfg.readout.sampling_hz
+        width = cfg.window_samples
+        readings = np.asarray(arrays["readings"], dtype=np.float32)
+        b, p, r = readings.shape
+        # a few pixels of every touch (pixels on one object are alike: more touches per step)
+        keep = min(p, _TRAIN_PIXELS)
+        pick = np.argsort(rng.random((b, p)), axis=1)[:, :keep]
+        rows = (np.arange(b)[:, None] * p + pick).ravel()
+        records = readings.reshape(b * p, r)[rows]
+        onset = np.asarray(arrays["latent_onset_s"], dtype=np.float64).reshape(-1)[rows]
+        release = np.asarray(arrays["latent_release_s"], dtype=np.float64).reshape(-1)[rows]
+        material = np.asarray(arrays["latent_material"]).reshape(-1)[rows]
+        labels = labels_from_materials(material, len(cfg.material_list))
+        p = keep
+        n = b * p
+        hi = np.maximum(np.minimum(release - onset, cfg.window_s - _TRAIN_BASE_S), _TRAIN_MIN_S + 1e-3)
+        lo = np.full(n, _TRAIN_MIN_S)
+        u = rng.random(n)
+        log_draw = np.exp(np.log(lo) + u * (np.log(hi) - np.log(lo)))
+        lin_draw = lo + u * (hi - lo)
+        d = np.where(rng.random(n) < 0.5, log_draw, lin_draw)
+        end = np.minimum(np.floor((onset + d) * fs).astype(np.int64) + 1, r)
+        x = windows(records, np.full(n, r), end, width)
+        x += rng.uniform(-3.0, 3.0, size=(n, 1)).astype(np.float32)
+        return x, {"label": labels}
+
+    def build_net(self, size: str, scene: Scene, stats: dict[str, Any]) -> torch.nn.Module:
+        from tactile_learn.nets.thermal import build_thermal_net
+
+        return build_thermal_net(size, scene, stats)
+
+    def train_forward(self, net: torch.nn.Module, inputs: torch.Tensor) -> torch.Tensor:
+        return net.logits(inputs)  # type: ignore[operator]
+
+    def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
+        from tactile_learn.nets.thermal import thermal_loss
+
+        return thermal_loss(output, targets["label"])
+
+
+def oracle_accuracy_by_duration(data: EvalData, limit: int | None = None) -> dict[str, Any]:
+    """``oracle_accuracy_by_duration`` (and the oracle's family accuracy) on ``data``: the physics
+    fit given each pixel's true heat capacity, loss and heater (``latent_heat_capacity_j_m2k``,
+    ``latent_loss_w_m2k``, ``latent_heater_w_m2``), the material and every nuisance unknown (their
+    ranges known from the scene). ``limit``: first rows only."""
+    from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
+
+    for key in ("latent_heat_capacity_j_m2k", "latent_loss_w_m2k", "latent_heater_w_m2"):
+        if key not in data.extra:
+            raise DataError(f"{data.source}: the oracle needs {key} (generate with the 'latent' output)")
+    if limit is not None:
+        data = data.subset(slice(0, limit))
+    task = ThermalTask()
+    out: dict[str, Any] = {"oracle_accuracy_by_duration": {}, "oracle_family_accuracy_by_duration": {}}
+    materials = _config(data.scene).material_list
+    for d in DURATIONS_S:
+        x, valid = view(data, d)
+        if not valid.any():
+            continue
+        oracle = PhysicsFitEstimator(
+            data.scene,
+            heat_capacity=data.extra["latent_heat_capacity_j_m2k"][valid],
+            loss=data.extra["latent_loss_w_m2k"][valid],
+            heater=data.extra["latent_heater_w_m2"][valid],
+        )
+        m = thermal_metrics(
+            oracle.predict(task.check_inputs(x[valid], data.scene)), data.truth["label"][valid], materials
+        )
+        out["oracle_accuracy_by_duration"][_key(d)] = m["accuracy"]
+        out["oracle_family_accuracy_by_duration"][_key(d)] = m["family_accuracy"]
+    return out
