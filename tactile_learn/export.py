@@ -198,6 +198,25 @@ def _json_ready(value: Any) -> Any:
     return json_ready(value)
 
 
+def _strip_debug_info(model: Any) -> None:
+    """Drop the exporter's per-node stack traces and doc strings: they name source files of the
+    machine that exported the model, and a shipped model must not carry them."""
+    graphs = [model.graph, *(f for f in model.functions)]
+    while graphs:
+        graph = graphs.pop()
+        for node in graph.node:
+            del node.metadata_props[:]
+            node.doc_string = ""
+            for attr in node.attribute:
+                if attr.g is not None and len(attr.g.node):
+                    graphs.append(attr.g)
+                graphs.extend(attr.graphs)
+        for value in (*getattr(graph, "value_info", ()), *getattr(graph, "input", ()), *getattr(graph, "output", ())):
+            del value.metadata_props[:]
+        if hasattr(graph, "doc_string"):
+            graph.doc_string = ""
+
+
 def _torch_export(
     net: torch.nn.Module,
     example: torch.Tensor,
@@ -229,6 +248,7 @@ def _torch_export(
         raise ModelError("the ONNX exporter returned nothing")
     program.save(str(path))
     model = onnx.load(str(path))
+    _strip_debug_info(model)
     entry = model.metadata_props.add()
     entry.key = METADATA_KEY
     entry.value = json.dumps(metadata)

@@ -35,6 +35,10 @@ __all__ = ["INDEX", "Touch", "read_recordings", "read_touch", "resample", "write
 
 INDEX = "touches.csv"
 UNLABELLED = ("", "?")
+#: most samples a record may have once resampled (a guard against time_s in the wrong unit)
+MAX_SAMPLES = 10_000_000
+#: DictReader key of the values in a row beyond its header's columns
+_EXTRA = "\x00extra"
 
 
 @dataclass
@@ -91,7 +95,8 @@ def read_touch(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             raise DataError(f"{where}: expected {len(header)} columns, got {len(row)}")
         time[n] = _float(row[it].strip(), where)
         temp[n] = _float(row[ix].strip(), where)
-    step = np.diff(time)
+    with np.errstate(over="ignore"):  # a span beyond float64 is +-inf: still ordered right
+        step = np.diff(time)
     if (step <= 0).any():
         bad = int(np.argmax(step <= 0)) + 3  # row number of the offending sample (header is row 1)
         raise DataError(f"{path}: row {bad}: time_s does not increase ({time[bad - 3]} then {time[bad - 2]})")
@@ -111,7 +116,9 @@ def read_recordings(path: str | Path, materials: Sequence[str] | None = None) ->
         text = index.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise DataError(f"{index}: cannot be read ({exc})") from None
-    reader = csv.DictReader(io.StringIO(text))
+    reader = csv.DictReader(io.StringIO(text), restkey=_EXTRA)
+    if not reader.fieldnames:
+        raise DataError(f"{index}: empty file (expected a header file,material and one row per touch)")
     fields = [f.strip().lower() for f in (reader.fieldnames or [])]
     missing = [c for c in ("file", "material") if c not in fields]
     if missing:
@@ -121,8 +128,10 @@ def read_recordings(path: str | Path, materials: Sequence[str] | None = None) ->
     allowed = None if materials is None else {get_material(m).name for m in materials}
     touches: list[Touch] = []
     for n, raw in enumerate(reader):
-        row = {(k or "").strip().lower(): (v or "").strip() for k, v in raw.items()}
+        row = {(k or "").strip().lower(): (v or "").strip() for k, v in raw.items() if k != _EXTRA}
         where = f"{index}: row {n + 2}"
+        if _EXTRA in raw:
+            raise DataError(f"{where}: {len(fields) + len(raw[_EXTRA])} fields, the header has {len(fields)}")
         if not row.get("file"):
             raise DataError(f"{where}: empty file name")
         label = row.get("material", "")
@@ -159,7 +168,7 @@ def write_recordings(path: str | Path, touches: Iterable[Touch]) -> Path:
         body = io.StringIO()
         body.write("time_s,temperature_c\n")
         for a, b in zip(t.time_s, t.temperature_c, strict=True):
-            body.write(f"{a:.6f},{b:.5f}\n")
+            body.write(f"{float(a)!r},{b:.5f}\n")  # time to the float: any rate reads back
         atomic_write_text(folder / t.file, body.getvalue())
         onset = [] if not has_onset else ["" if t.onset_s is None else f"{t.onset_s:.6f}"]
         writer.writerow([t.file, t.material or "", *onset, *(t.info.get(k, "") for k in extra)])
@@ -171,7 +180,12 @@ def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
     """The touch on a uniform grid at ``fs`` Hz from its first sample (linear interpolation), and
     its onset in samples of that grid (``None`` when unknown)."""
     t0, t1 = float(touch.time_s[0]), float(touch.time_s[-1])
-    n = math.floor((t1 - t0) * fs + 1e-9) + 1
+    span = (t1 - t0) * fs
+    if not span < MAX_SAMPLES:  # also catches an infinite span
+        raise DataError(
+            f"{touch.file}: time_s spans {t1 - t0:g} s, over {MAX_SAMPLES} samples at {fs:g} Hz (is time_s in seconds?)"
+        )
+    n = math.floor(span + 1e-9) + 1
     grid = t0 + np.arange(n) / fs
     values = np.interp(grid, touch.time_s, touch.temperature_c)
     onset = None if touch.onset_s is None else (touch.onset_s - t0) * fs

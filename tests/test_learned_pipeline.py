@@ -118,6 +118,13 @@ def test_export_parity_card_and_runtime(model: Path, run: Path, data: Path) -> N
     assert card["parity"]["rel_err_b1"] <= PARITY_TOL and card["parity"]["rel_err_b7"] <= PARITY_TOL
     assert card["metrics"]["heldout"]["command"] == "pytest"
     assert card["metrics"]["heldout"]["data"]["seed"] == 3
+    # nothing of the exporting machine ships: no source paths in the graph, no absolute paths in the card
+    import tactile_learn
+
+    source_root = str(Path(tactile_learn.__file__).resolve().parent.parent).encode()
+    assert source_root not in model.read_bytes()
+    assert str(data).encode() not in model.read_bytes()
+    assert str(data) not in model.with_suffix(".json").read_text()
     saved = load_run(run)
     scene = load_scene("strips5")
     from tactile_learn.tasks import get_task

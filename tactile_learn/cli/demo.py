@@ -11,7 +11,7 @@ from tactile_learn.cli.common import positive_int
 HELP = "run the main job end to end: simulate, classical baselines, train, export, benchmark"
 EXAMPLES = """\
   tactile-learn demo                 # writes demo-out/ (tables, plots, a freshly trained model)
-  tactile-learn demo --out /tmp/d --skip-train"""
+  tactile-learn demo --out demo-quick --skip-train"""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -228,6 +228,10 @@ class FsrTask(Task):
                 f"{path}: needs arrays 'readings' (B, 6), 'xy_mm' (B, 2) and 'force_n' (B,); "
                 f"missing {', '.join(missing)}"
             )
+        for key in ("readings", "xy_mm", "force_n"):
+            dtype = np.asarray(arrays[key]).dtype
+            if not np.issubdtype(dtype, np.number) or np.issubdtype(dtype, np.complexfloating):
+                raise DataError(f"{path}: {key} must be real numbers, got dtype {dtype}")
         readings = np.asarray(arrays["readings"])
         xy = np.asarray(arrays["xy_mm"], dtype=np.float64)
         force = np.asarray(arrays["force_n"], dtype=np.float64)

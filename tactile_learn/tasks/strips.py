@@ -22,6 +22,14 @@ if TYPE_CHECKING:
 __all__ = ["StripsTask", "frame_groups"]
 
 
+def _apart(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
+    """Two contacts more than a pitch apart in both x and y: distinct rows and columns, so ghosts."""
+    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
+    if xy.shape[1] < 2:
+        return np.zeros(len(xy), dtype=bool)
+    return (np.abs(xy[:, 0, 0] - xy[:, 1, 0]) > pitch_mm) & (np.abs(xy[:, 0, 1] - xy[:, 1, 1]) > pitch_mm)
+
+
 def frame_groups(extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, np.ndarray]:
     """Boolean masks of the ambiguity groups, from a dataset's latent contact list.
 
@@ -39,15 +47,39 @@ def frame_groups(extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, np.
         return groups
     force = extra["latent_force_n"][:, :2].astype(np.float64)
     radius = extra["latent_radius_mm"][:, :2].astype(np.float64)
-    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
     rel_f = np.abs(force[:, 0] - force[:, 1]) / np.maximum(force.max(axis=1), 1e-12)
     rel_r = np.abs(radius[:, 0] - radius[:, 1]) / np.maximum(radius.max(axis=1), 1e-12)
     similar = (rel_f < 0.15) & (rel_r < 0.15)
-    apart = (np.abs(xy[:, 0, 0] - xy[:, 1, 0]) > pitch_mm) & (np.abs(xy[:, 0, 1] - xy[:, 1, 1]) > pitch_mm)
+    apart = _apart(extra, pitch_mm)
     two = n == 2
     groups["two_twins"] = two & similar & apart
     groups["two_distinct"] = two & ~groups["two_twins"]
     return groups
+
+
+def pairing(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, float]:
+    """How an estimate pairs the rows and columns of two contacts on distinct rows and columns.
+
+    The two real crossings are (row of contact 1, column of contact 1) and (row 2, column 2); the
+    ghosts are (row 1, column 2) and (row 2, column 1). With ``ratio`` = estimated pressure on the
+    ghost crossings / on the real ones: ``confident_right`` (ratio < 0.5), ``spread`` (0.5 to 2:
+    mass on both pairings, the honest answer when the readings cannot tell), ``confident_wrong``
+    (ratio > 2: a pairing the readings do not support, invented).
+    """
+    n, m = pred.shape[1:]
+    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
+    rows = np.clip((xy[..., 1] // pitch_mm).astype(int), 0, n - 1)
+    cols = np.clip((xy[..., 0] // pitch_mm).astype(int), 0, m - 1)
+    b = np.arange(len(pred))
+    real = pred[b, rows[:, 0], cols[:, 0]] + pred[b, rows[:, 1], cols[:, 1]]
+    ghost = pred[b, rows[:, 0], cols[:, 1]] + pred[b, rows[:, 1], cols[:, 0]]
+    ratio = (ghost + 1e-9) / (real + 1e-9)  # 1e-9 kPa: an empty estimate counts as a spread, not 0/0
+    return {
+        "ghost_to_real_median": float(np.median(ratio)) if len(ratio) else float("nan"),
+        "confident_right": float(np.mean(ratio < 0.5)) if len(ratio) else float("nan"),
+        "spread": float(np.mean((ratio >= 0.5) & (ratio <= 2.0))) if len(ratio) else float("nan"),
+        "confident_wrong": float(np.mean(ratio > 2.0)) if len(ratio) else float("nan"),
+    }
 
 
 class StripsTask(Task):
@@ -114,6 +146,10 @@ class StripsTask(Task):
                         "n_frames": int(mask.sum()),
                         **{k: sub[k] for k in ("pearson_r_mean", "pearson_r_median", "nrmse", "peak_err_mm_median")},
                     }
+                    if group.startswith("two"):
+                        apart = _apart(data.extra, pitch)[mask]
+                        picked = {k: v[mask][apart] for k, v in data.extra.items()}
+                        by_group[group]["pairing"] = pairing(pred[mask][apart], picked, pitch)
             result["by_group"] = by_group
         return result
 

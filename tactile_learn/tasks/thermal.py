@@ -103,7 +103,8 @@ def view(data: EvalData, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
     cfg = _config(data.scene)
     fs = cfg.readout.sampling_hz
     record, length, onset = data.extra["record"], data.extra["length"], data.extra["onset_s"]
-    end = np.floor((onset.astype(np.float64) + duration_s) * fs + 1e-9).astype(np.int64) + 1
+    end_s = np.floor((onset.astype(np.float64) + duration_s) * fs + 1e-9) + 1
+    end = np.clip(end_s, 0, length + 1).astype(np.int64)  # clipped first: a far-off onset does not overflow
     valid = end <= length
     return windows(record, length, np.minimum(end, length), cfg.window_samples), valid
 
@@ -243,23 +244,44 @@ class ThermalTask(Task):
         if "readings" not in arrays:
             raise DataError(f"{source}: needs an array 'readings' (B, R) or (B, P, R) of temperatures (degC)")
         readings = np.asarray(arrays["readings"])
+        if not np.issubdtype(readings.dtype, np.number) or np.iscomplexobj(readings):
+            raise DataError(f"{source}: readings must be real numbers (degC), got dtype {readings.dtype}")
         if readings.ndim == 2:
             readings = readings[:, None, :]
         if readings.ndim != 3 or readings.shape[2] < 2:
             raise DataError(f"{source}: readings have shape {readings.shape}, expected (B, R) or (B, P, R)")
         b, p, r = readings.shape
         k = len(cfg.material_list)
+
+        def per_touch(name: str, values: Any) -> np.ndarray:
+            """``values`` as (B, P) (one per pixel) or (B, 1) (one per touch)."""
+            arr = np.asarray(values)
+            if arr.size == b * p:
+                return arr.reshape(b, p)
+            if arr.size == b:
+                return arr.reshape(b, 1)
+            raise DataError(f"{source}: {name} have shape {arr.shape}, readings {readings.shape} need {(b, p)}")
+
         if "latent_material" in arrays:
-            mat = np.asarray(arrays["latent_material"]).reshape(b, -1)
+            mat = per_touch("labels", arrays["latent_material"])
+            integral = mat.dtype.kind in "iu" or (
+                mat.dtype.kind == "f" and bool(np.isfinite(mat).all()) and bool((mat == np.round(mat)).all())
+            )
+            if not integral:
+                raise DataError(
+                    f"{source}: latent_material must hold integer material indices (-1 = none), got dtype {mat.dtype}"
+                )
+            mat = mat.astype(np.int64)
         elif "material" in arrays:
             names = [m.name for m in cfg.material_list]
-            raw = np.asarray(arrays["material"]).reshape(b, -1)
+            raw = per_touch("labels", arrays["material"])
             unknown = sorted({str(v) for v in raw.ravel() if str(v) not in (*names, NONE, "")})
             if unknown:
                 raise DataError(
                     f"{source}: material(s) {', '.join(unknown)} not in the scene's list ({', '.join(names)})"
                 )
-            mat = np.array([[names.index(str(v)) if str(v) in names else -1 for v in row] for row in raw])
+            mat = np.array([names.index(str(v)) if str(v) in names else -1 for v in raw.ravel()], dtype=np.int64)
+            mat = mat.reshape(raw.shape)
         else:
             raise DataError(
                 f"{source}: needs labels 'latent_material' (material index, -1 = none) or 'material' (names)"
@@ -271,7 +293,10 @@ class ThermalTask(Task):
         records = readings.reshape(b * p, r).astype(np.float32)
         onset_key = next((key for key in ("latent_onset_s", "onset_s") if key in arrays), None)
         if onset_key is not None:
-            onset = np.broadcast_to(np.asarray(arrays[onset_key], dtype=np.float64).reshape(b, -1), (b, p)).ravel()
+            given = per_touch(onset_key, arrays[onset_key])
+            if not np.issubdtype(given.dtype, np.number) or not np.isfinite(given).all():
+                raise DataError(f"{source}: {onset_key} must be finite numbers (s from the record's start)")
+            onset = np.broadcast_to(given.astype(np.float64), (b, p)).ravel()
         else:
             onset = self._detect_onsets(records, cfg)
         extra: dict[str, np.ndarray] = {

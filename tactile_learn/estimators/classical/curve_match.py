@@ -78,7 +78,14 @@ def nominal_sensor(config: ThermalConfig) -> tuple[float, float]:
 
 
 def detect_onset(x: np.ndarray, fs: float, adc_step: float = 0.0, base_s: float = 0.1) -> Onset:
-    """Onset alignment of curves ``x`` (B, W) (see the module docstring, step 1)."""
+    """Onset alignment of curves ``x`` (B, W) (see the module docstring, step 1).
+
+    A flat run (3 or more equal samples) at the window's start is taken for padding and skipped
+    when estimating the baseline and the noise, unless the readings leave its value for good right
+    where it ends (they depart strictly monotonically, cross the threshold within ``LOOKBACK`` samples and
+    never come back): then it is a noise-free baseline (a clean or sub-LSB-noise sensor), skipping
+    it would estimate the noise from the contact itself, and the curve is detected without the skip.
+    """
     x = np.asarray(x, dtype=np.float64)
     w = x.shape[1]
     # a window that starts before its record is padded with the record's first sample: skip that
@@ -86,20 +93,49 @@ def detect_onset(x: np.ndarray, fs: float, adc_step: float = 0.0, base_s: float 
     flat = np.cumprod(x == x[:, :1], axis=1).sum(axis=1)
     start = np.where(flat >= 3, flat - 1, 0)
     n0 = int(min(max(3, round(base_s * fs)), max(1, w // 2)))
+    onset, _ = _detect_from(x, start, np.full(len(x), w), n0, adc_step)
+    runs = np.flatnonzero(start > 0)
+    if len(runs):
+        # the other reading: the run is the baseline (its value) and the noise (none: the floor)
+        xr = x[runs]
+        plain, k1 = _detect_from(xr, np.zeros(len(runs), dtype=np.int64), flat[runs], n0, adc_step)
+        end = flat[runs] - 1  # the run's last sample
+        idx = np.arange(w)[None, :]
+        dev = plain.direction[:, None] * (xr[:, :1] - xr)
+        back = (idx >= k1[:, None]) & (dev <= 1.5 * plain.sigma[:, None])
+        # the first samples after the run depart strictly monotonically (noise around a padded value
+        # does not: it settles at once)
+        rise = np.diff(dev, axis=1, prepend=0.0)
+        stall = (idx > end[:, None]) & (idx <= end[:, None] + 1 + LOOKBACK) & (rise <= 0)
+        baseline_run = plain.detected & (k1 <= end + LOOKBACK) & ~back.any(axis=1) & ~stall.any(axis=1)
+        rows = runs[baseline_run]
+        for name in ("index", "detected", "baseline", "sigma", "direction"):
+            getattr(onset, name)[rows] = getattr(plain, name)[baseline_run]
+    return onset
+
+
+def _detect_from(
+    x: np.ndarray, start: np.ndarray, stop: np.ndarray, n0: int, adc_step: float
+) -> tuple[Onset, np.ndarray]:
+    """:func:`detect_onset` with the baseline and noise spans starting at sample ``start`` (B,) and
+    ending before ``stop`` (B,); also returns the first threshold crossing ``k1`` (B,) (``W - 1``
+    when nothing was detected)."""
+    w = x.shape[1]
     idx = np.arange(w)[None, :]
-    first = (idx >= start[:, None]) & (idx < start[:, None] + n0)
+    inside = idx < stop[:, None]
+    first = (idx >= start[:, None]) & (idx < start[:, None] + n0) & inside
     with warnings.catch_warnings():  # a window that is flat throughout: all-NaN rows
         warnings.simplefilter("ignore", RuntimeWarning)
         b0 = np.nanmedian(np.where(first, x, np.nan), axis=1)
     b0 = np.where(np.isfinite(b0), b0, x[:, -1])
     floor = max(adc_step / math.sqrt(12.0), 1e-3)  # quantisation noise; never a zero sigma
-    span = (idx >= start[:, None]) & (idx < start[:, None] + 2 * n0)
+    span = (idx >= start[:, None]) & (idx < start[:, None] + 2 * n0) & inside
     # noise from successive differences (robust to a slow drift, exact for quantised readings,
     # unlike a median): the mean square without the largest one (a stray onset), d ~ N(0, 2 s^2)
     pair = span[:, 1:] & span[:, :-1]
     d2 = np.where(pair, np.diff(x, axis=1) ** 2, 0.0)
     count = pair.sum(axis=1)
-    trimmed = (d2.sum(axis=1) - d2.max(axis=1)) / np.maximum(count - 1, 1)  # count - 1 >= 1 where used
+    trimmed = (d2.sum(axis=1) - d2.max(axis=1, initial=0.0)) / np.maximum(count - 1, 1)  # count - 1 >= 1 where used
     sigma0 = np.where(count >= 3, np.sqrt(trimmed / (2.0 * _TRIM_FACTOR)), 0.0)
     sigma0 = np.maximum(sigma0, floor)
     tail = x[:, -min(3, w) :].mean(axis=1)
@@ -120,7 +156,7 @@ def detect_onset(x: np.ndarray, fs: float, adc_step: float = 0.0, base_s: float 
     count = use.sum(axis=1)
     mean = np.where(use, x, 0.0).sum(axis=1) / np.maximum(count, 1)  # count >= 1 where used
     baseline = np.where(count >= 3, mean, b0)
-    return Onset(k0.astype(np.int64), detected, baseline, sigma0, direction)
+    return Onset(k0.astype(np.int64), detected, baseline, sigma0, direction), k1
 
 
 def drop_segments(x: np.ndarray, onset: Onset, lookback: int = LOOKBACK) -> tuple[np.ndarray, np.ndarray]:

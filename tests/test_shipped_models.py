@@ -1,0 +1,43 @@
+"""Every shipped model still meets its card: fresh held-out frames (a seed no card used) are
+simulated for the card's own scene, and the ONNX model's metrics are compared with the card's."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from synth.dataset import generate
+from synth.scene import parse_scene
+from tactile_learn.runtime import OnnxEstimator
+from tactile_learn.tasks import get_task
+
+MODELS = sorted((Path(__file__).resolve().parent.parent / "models").glob("*.onnx"))
+FRESH_SEED = 424242
+#: per task: frames to simulate, and (metric, higher is better, allowed slack) checked against the card;
+#: the slack covers the sampling error of a small fresh set, not a loss of accuracy
+CHECKS = {
+    "strips": (600, [("pearson_r_mean", True, 0.015), ("nrmse", False, 0.04)]),
+    "fsr": (3000, [("force_accuracy", True, 0.02), ("loc_err_mm_median", False, 0.15)]),
+    "thermal": (60, [("accuracy", True, 0.06)]),
+}
+
+
+@pytest.mark.parametrize("model", MODELS, ids=[m.stem for m in MODELS])
+def test_shipped_model_meets_its_card(model: Path, tmp_path: Path) -> None:
+    card = json.loads(model.with_suffix(".json").read_text())
+    assert model.stat().st_size < 5 * 2**20, "shipped models stay well under 5 MB"
+    heldout = card["metrics"]["heldout"]
+    assert heldout["command"].startswith("tactile-learn ") and heldout["data"]["seed"] != FRESH_SEED
+    scene = parse_scene(card["scene"])
+    n, checks = CHECKS[card["task"]]
+    generate(scene, n, FRESH_SEED, tmp_path / "fresh")
+    task = get_task(card["task"])
+    metrics = task.evaluate(OnnxEstimator(model), task.load_eval_data(tmp_path / "fresh"))
+    for name, higher_better, slack in checks:
+        claimed = heldout["values"][name]
+        if higher_better:
+            assert metrics[name] >= claimed - slack, (name, metrics[name], claimed)
+        else:
+            assert metrics[name] <= claimed + slack, (name, metrics[name], claimed)
