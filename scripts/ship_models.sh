@@ -2,6 +2,8 @@
 # Rebuild every shipped model in models/ from scratch, on CPU: datasets in data/, runs in runs/
 # (both git-ignored). Each card in models/ records the held-out metrics and the command that
 # measured them. Run from the repository root after `make demo` (or any install of the project).
+# Trainings use one thread each, so that two of them (or a training and the test suite) share the
+# machine's two cores without oversubscribing them.
 #   scripts/ship_models.sh [strips16|strips16_large|strips5|fsr|thermal|thermal_wns ...]   (default: all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,19 +19,21 @@ ship() {  # run, model name, test folder
 
 strips16() {  # the default recipe: `train` with its defaults (small net, 15 epochs)
   data strips16 200000 1 strips16-train; data strips16 4000 2 strips16-val; data strips16 4000 3 strips16-test
-  $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16 --quiet
+  $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16 --threads 1 --quiet
   ship strips16 strips16 strips16-test
 }
 
 strips16_large() {  # the second point of the run time vs error curve
   data strips16 200000 1 strips16-train; data strips16 4000 2 strips16-val; data strips16 4000 3 strips16-test
-  $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16_large --size large --quiet
+  $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16_large --size large \
+    --threads 1 --quiet
   ship strips16_large strips16_large strips16-test
 }
 
 strips5() {
   data strips5 100000 1 strips5-train; data strips5 4000 2 strips5-val; data strips5 4000 3 strips5-test
-  $TL train --task strips --data data/strips5-train --val data/strips5-val --out runs/strips5 --epochs 10 --quiet
+  $TL train --task strips --data data/strips5-train --val data/strips5-val --out runs/strips5 --epochs 10 --threads 1 \
+    --quiet
   ship strips5 strips5 strips5-test
 }
 

@@ -306,7 +306,10 @@ def _generation_memory(scene: str, n: int, workers: int = 2) -> dict[str, Any]:
         "t = time.perf_counter(); "
         "generate(load_scene(sys.argv[1]), int(sys.argv[2]), 1, sys.argv[3], workers=int(sys.argv[4])); "
         "dt = time.perf_counter() - t; "
-        "own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
+        # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, so a child of a large benchmark
+        # process would report its parent's peak
+        "import os; own = int([l.split()[1] for l in open('/proc/self/status') if l.startswith('VmHWM')][0]) "
+        "if os.path.exists('/proc/self/status') else resource.getrusage(resource.RUSAGE_SELF).ru_maxrss; "
         "kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss; "
         "print(dt, own, kids)"
     )

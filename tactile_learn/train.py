@@ -170,7 +170,9 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     }
     if resume:
         ckpt = _load_torch(ckpt_path)
-        if ckpt.get("config") != asdict(config):
+        # the thread count may change on resume (a busier machine): it changes speed, not the recipe
+        started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
+        if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
             raise ConfigError(f"{ckpt_path}: the run was started with other settings; resume it with the same command")
         net.load_state_dict(ckpt["net"])
         optimizer.load_state_dict(ckpt["optimizer"])

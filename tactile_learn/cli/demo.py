@@ -103,7 +103,19 @@ def run(args: argparse.Namespace) -> int:
         )
         model = out / "strips16-demo.onnx"
         cli(["export", str(run_dir), "--out", str(model), "--test", str(out / "strips16-test")])
-        cli(["eval", "--task", "strips", "--data", str(out / "strips16-test"), "--method", str(model)])
+        cli(["eval", "--task", "strips", "--data", str(out / "strips16-test"), "--method", str(model), "--summary"])
+        cli(
+            [
+                "eval",
+                "--task",
+                "strips",
+                "--data",
+                str(out / "strips16-test"),
+                "--method",
+                "strips16",  # the shipped model, for comparison with the quick one
+                "--summary",
+            ]
+        )
 
     _step("benchmark every task: shipped models against the classical algorithms")
     cli(

@@ -30,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", default=None, help="also write the result to this JSON file")
     parser.add_argument("--limit", type=positive_int, default=None, help="evaluate only the first N frames")
     parser.add_argument("--threads", type=positive_int, default=1, help="onnxruntime threads (default 1)")
+    parser.add_argument("--summary", action="store_true", help="print one line of headline metrics, not the JSON")
     parser.add_argument(
         "--reference", action="store_true", help="add method-independent reference metrics (thermal: the oracle; slow)"
     )
@@ -59,5 +60,9 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.json:
         write_json(args.json, result)
-    print(dumps(result))
+    if args.summary:
+        scalars = [f"{k} {v:.4g}" for k, v in metrics.items() if isinstance(v, float) and not k.startswith("n_")]
+        print(f"{result['method']:>22s} on {args.data} ({len(data)} frames): " + ", ".join(scalars[:5]))
+    else:
+        print(dumps(result))
     return 0

@@ -7,7 +7,8 @@ curves"; its copy gives no distance, so this one is the project's own, documente
 
 1. **Onset alignment** (:func:`detect_onset`): baseline ``b`` (median) from the window's first
    0.1 s and noise ``sigma`` from the successive differences over its first 0.2 s (a flat run of
-   padding at the start is skipped); the departure ``dev = dir (b - x)`` (``dir`` = sign of the final departure, so a
+   padding at the start is skipped, unless the readings leave it for good where it ends: then it is
+   a noise-free baseline); the departure ``dev = dir (b - x)`` (``dir`` = sign of the final departure, so a
    warm object works too) must exceed ``max(5 sigma, 2 ADC steps)`` on two consecutive samples; the
    onset sample ``k0`` is the last sample before that crossing still within ``1.5 sigma`` of the
    baseline. The baseline is then re-estimated from the samples before ``k0``.
@@ -82,9 +83,10 @@ def detect_onset(x: np.ndarray, fs: float, adc_step: float = 0.0, base_s: float 
 
     A flat run (3 or more equal samples) at the window's start is taken for padding and skipped
     when estimating the baseline and the noise, unless the readings leave its value for good right
-    where it ends (they depart strictly monotonically, cross the threshold within ``LOOKBACK`` samples and
-    never come back): then it is a noise-free baseline (a clean or sub-LSB-noise sensor), skipping
-    it would estimate the noise from the contact itself, and the curve is detected without the skip.
+    where it ends (they depart strictly monotonically, cross the threshold within ``LOOKBACK``
+    samples and never come back): then it is a noise-free baseline (a clean or sub-LSB-noise
+    sensor), skipping it would estimate the noise from the contact itself, and the curve is detected
+    without the skip (baseline: the run's value; noise: the floor).
     """
     x = np.asarray(x, dtype=np.float64)
     w = x.shape[1]
