@@ -63,18 +63,25 @@ def markdown(result: dict[str, Any]) -> str:
     if ratios:
         lines += [
             "",
-            f"Relative to `{result['ratios']['reference']}` ({result['ratios']['error_metric']} as error):",
+            f"Relative to the paper's `{result['ratios']['reference']}` and to the most accurate classical "
+            f"method, `{result['ratios'].get('best_classical', '-')}` (error: {result['ratios']['error_metric']}):",
             "",
         ]
         lines += [
-            "| learned | error ratio | latency ratio (b1) | throughput ratio (b1024) |",
-            "|---|---:|---:|---:|",
+            "| learned | error ratio | latency ratio (b1) | throughput ratio (b1024) | error ratio (best) "
+            "| latency ratio (best) |",
+            "|---|---:|---:|---:|---:|---:|",
         ]
         for name, r in ratios.items():
             lines.append(
-                f"| {name} | {_fmt(r['error_ratio'])} | {_fmt(r['latency_ratio'])} | {_fmt(r['throughput_ratio'])} |"
+                f"| {name} | {_fmt(r['error_ratio'])} | {_fmt(r['latency_ratio'])} | {_fmt(r['throughput_ratio'])} "
+                f"| {_fmt(r.get('error_ratio_best'))} | {_fmt(r.get('latency_ratio_best'))} |"
             )
     return "\n".join(lines) + "\n"
+
+
+#: marker per backend in the Pareto plot (others: a diamond)
+_BACKEND_MARKERS = {"numpy": "o", "onnxruntime-1t": "s", "onnxruntime-2t": "P", "torch-eager-1t": "^"}
 
 
 def pareto_plot(results: list[dict[str, Any]], path: str | Path) -> bool:
@@ -89,29 +96,35 @@ def pareto_plot(results: list[dict[str, Any]], path: str | Path) -> bool:
     tasks = [r for r in results if r["task"] in ERROR_METRIC and r["methods"]]
     if not tasks:
         return False
-    fig, axes = plt.subplots(1, len(tasks), figsize=(5.2 * len(tasks), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(tasks), figsize=(5.4 * len(tasks), 4.6), squeeze=False)
+    colours = [plt.get_cmap("tab10")(i) for i in range(10)]
     for ax, result in zip(axes[0], tasks, strict=True):
         metric, lower_better = ERROR_METRIC[result["task"]]
         label = metric if lower_better else f"1 - {metric}"
+        # one colour per method, one marker per backend, named in a legend: backends of one model
+        # sit at the same error, so labels beside the markers would overlap
+        names = list(dict.fromkeys(m["name"] for m in result["methods"]))
         for m in result["methods"]:
             value = float(m["metrics"][metric])
             error = value if lower_better else 1.0 - value
-            marker = "o" if m["kind"] == "classical" else "s"
-            ax.scatter(m["latency_us_p50_b1"], error, marker=marker, s=40)
-            ax.annotate(
-                f"{m['name']}\n{m['backend']}",
-                (m["latency_us_p50_b1"], error),
-                fontsize=7,
-                xytext=(4, 2),
-                textcoords="offset points",
+            ax.scatter(
+                m["latency_us_p50_b1"],
+                error,
+                marker=_BACKEND_MARKERS.get(m["backend"], "D"),
+                color=colours[names.index(m["name"]) % len(colours)],
+                s=48,
+                label=f"{m['name']} [{m['backend']}]",
+                edgecolors="black" if m["kind"] == "learned" else "none",
+                linewidths=0.6,
             )
         ax.set_xscale("log")
         ax.set(
             xlabel="median latency per frame, batch 1 (us)",
-            ylabel=label,
+            ylabel=f"{label} (lower is better)",
             title=f"{result['task']} ({result['scene']})",
         )
         ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
     return True

@@ -60,6 +60,17 @@ def test_schema_and_a_slowed_method_measures_slower(with_slow_method: None, work
     # the sleep adds 4 ms per call: far beyond any jitter of a ~0.1 ms method
     assert slow["latency_us_p50_b1"] > fast["latency_us_p50_b1"] + 3000
     assert slow["metrics"]["nrmse"] == pytest.approx(fast["metrics"]["nrmse"])
+    ratios = result["ratios"]
+    assert ratios["reference"] == "intersection" and ratios["error_metric"] == "nrmse"
+    errors = {m["name"]: m["metrics"]["nrmse"] for m in result["methods"] if m["kind"] == "classical"}
+    assert ratios["best_classical"] == min(errors, key=errors.__getitem__)
+    assert any(m["kind"] == "learned" for m in result["methods"]), "the shipped strips5 model is benchmarked"
+    for name, m in by_name.items():
+        entry = ratios.get(f"{name} [{m['backend']}]")
+        if m["kind"] == "learned":  # the shipped strips5 model
+            assert entry["error_ratio"] == pytest.approx(m["metrics"]["nrmse"] / errors["intersection"])
+            # the most accurate classical method is at least as accurate as the paper's
+            assert entry["error_ratio_best"] >= entry["error_ratio"]
     json.dumps(result, allow_nan=True)
     table = markdown(result)
     assert "slow_intersection" in table and "p50 us" in table
