@@ -33,7 +33,7 @@ stress: $(STAMP)
 	TACTILE_STRESS=1 $(BIN)/python -m pytest -q -m stress
 
 bench: $(STAMP)
-	$(BIN)/tactile-learn bench --task all --json results/bench.json --plot results/bench.png
+	$(BIN)/tactile-learn bench --task all --reference --json results/bench.json --plot results/bench.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -11,7 +11,7 @@ from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks import get_task
 
-__all__ = ["available_methods", "model_dirs", "resolve_method", "shipped_models"]
+__all__ = ["available_methods", "model_dirs", "model_scene", "resolve_method", "shipped_models"]
 
 
 def model_dirs() -> list[Path]:
@@ -49,6 +49,23 @@ def shipped_models(task: str) -> dict[str, Path]:
 
 def available_methods(task: str) -> list[str]:
     return [*get_task(task).classical_methods(), *shipped_models(task)]
+
+
+def model_scene(task: str, spec: str) -> Scene | None:
+    """The scene a model was trained on, when ``spec`` names a model (shipped name or ``.onnx``
+    path) with a readable card; ``None`` for a classical method. Errors in the card surface when
+    the model is resolved."""
+    if spec in get_task(task).classical_methods():
+        return None
+    path = Path(spec) if Path(spec).suffix == ".onnx" else shipped_models(task).get(spec)
+    if path is None or not path.is_file():
+        return None
+    from tactile_learn.runtime import OnnxEstimator
+
+    try:
+        return OnnxEstimator(path).card_scene_
+    except ModelError:
+        return None
 
 
 def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Estimator:

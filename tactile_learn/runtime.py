@@ -105,6 +105,18 @@ class OnnxEstimator(Estimator):
                 f"{self.path}: the model takes {card_scene.task} inputs of shape {self.input_shape(card_scene)}, "
                 f"scene {self.scene.name!r} gives {self.input_shape(self.scene)}"
             )
+        from tactile_learn.tasks import get_task
+
+        task = get_task(card_scene.task)
+        model_labels, scene_labels = task.output_labels(card_scene), task.output_labels(self.scene)
+        if model_labels != scene_labels:
+            # same input shape but other classes (e.g. the full material library against the seed's
+            # three): the outputs would be read against the wrong names, a silent wrong answer
+            raise ModelError(
+                f"{self.path}: the model predicts the classes of scene {card_scene.name!r} "
+                f"({', '.join(model_labels)}), scene {self.scene.name!r} has {', '.join(scene_labels)}; "
+                f"evaluate with --scene {card_scene.name} (or a calibrated copy of it)"
+            )
         return self.scene
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:

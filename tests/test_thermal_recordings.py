@@ -4,6 +4,7 @@ calibration of an unknown sensor from a few labelled touches."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -149,3 +150,23 @@ def test_calibration_recovers_an_unknown_sensor(tmp_path: Path) -> None:
     with pytest.raises(DataError, match="no labelled touches"):
         write_recordings(tmp_path / "none", [dataclasses.replace(t, material=None) for t in touches[:2]])
         TASK.calibrate(tmp_path / "none", tmp_path / "x.toml", WNS)
+
+
+def test_a_model_is_never_read_against_another_scenes_classes(tmp_path: Path) -> None:
+    """The shipped thermal_wns model and the full library take the same window but predict other
+    classes: resolving it against the library's scene is an error, and ``eval`` on recordings
+    (which carry no scene) reads them with the model's own scene."""
+    from synth.errors import ModelError
+    from tactile_learn.cli import main
+    from tactile_learn.methods import resolve_method
+
+    with pytest.raises(ModelError, match="classes of scene 'thermal_wns'"):
+        resolve_method("thermal", "thermal_wns", load_scene("thermal"))
+    write_recordings(tmp_path / "rec", _touches(6, 4))
+    out = tmp_path / "r.json"
+    args = ["eval", "--task", "thermal", "--data", str(tmp_path / "rec"), "--method", "thermal_wns"]
+    assert main([*args, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["scene"] == "thermal_wns" and result["n_frames"] == 6
+    assert result["metrics"]["accuracy_by_duration"]["2.0"] >= 0.5  # a mislabelled model scores ~0
+    assert main([*args, "--scene", "thermal"]) != 0

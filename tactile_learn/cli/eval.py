@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
+from synth.dataset import MANIFEST
 from synth.errors import DataError
 from synth.scene import load_scene
 from tactile_learn.cli.common import dumps, positive_int, write_json
-from tactile_learn.methods import resolve_method
+from tactile_learn.methods import model_scene, resolve_method
 from tactile_learn.tasks import TASK_NAMES, get_task
 
 HELP = "evaluate a classical method or an ONNX model on a dataset, an .npz or recordings"
@@ -18,7 +20,8 @@ EXAMPLES = """\
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
 An .npz needs the task's arrays (strips: 'readings' (B, N+M) and 'pressure' (B, N, M)); a dataset
-folder from 'generate' carries its own scene. Prints and writes
+folder from 'generate' carries its own scene; other data is read with the model's scene (a
+classical method: the task's default) unless --scene names one. Prints and writes
 {"task", "method", "n_frames", "metrics": {...}}."""
 
 
@@ -26,7 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
     parser.add_argument("--data", required=True, help="dataset folder, .npz file, or recordings folder")
     parser.add_argument("--method", required=True, help="classical method name, shipped model name, or MODEL.onnx")
-    parser.add_argument("--scene", default=None, help="scene of the data (default: the dataset's, else the task's)")
+    parser.add_argument(
+        "--scene", default=None, help="scene of the data (default: the dataset's, else the model's, else the task's)"
+    )
     parser.add_argument("--json", default=None, help="also write the result to this JSON file")
     parser.add_argument("--limit", type=positive_int, default=None, help="evaluate only the first N frames")
     parser.add_argument("--threads", type=positive_int, default=1, help="onnxruntime threads (default 1)")
@@ -39,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     task = get_task(args.task)
     scene = load_scene(args.scene) if args.scene else None
+    if scene is None and not (Path(args.data) / MANIFEST).is_file():
+        # data without a scene of its own (an .npz, recordings) is read with the model's scene
+        scene = model_scene(args.task, args.method)
     data = task.load_eval_data(args.data, scene)
     if args.limit is not None:
         data = data.subset(slice(0, args.limit))

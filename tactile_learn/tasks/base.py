@@ -102,6 +102,11 @@ class Task(ABC):
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         """Per-frame shape of ``predict``'s input for ``scene``."""
 
+    def output_labels(self, scene: Scene) -> tuple[str, ...]:
+        """Names of ``predict``'s output classes for ``scene`` (empty for regression tasks): a model
+        applied to another scene of the same sensor must predict the same classes in the same order."""
+        return ()
+
     @abstractmethod
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         """Registry of classical estimators: name -> factory taking the scene."""

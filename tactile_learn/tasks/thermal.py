@@ -179,6 +179,9 @@ class ThermalTask(Task):
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         return (_config(scene).window_samples,)
 
+    def output_labels(self, scene: Scene) -> tuple[str, ...]:
+        return class_names(scene)
+
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
         """Shape, NaN/inf, and the ADC's range: a reading at either end of ``adc_range_c`` is
         saturated; below a range starting at 0 degC it is a negative (invalid) reading."""
