@@ -36,7 +36,7 @@ from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card
 from tactile_learn.tasks import get_task
 from tactile_learn.train import load_run
 
-__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check"]
+__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "to_onnx"]
 
 OPSET = 18
 #: max |onnx - torch| allowed, as a fraction of the torch output's range
@@ -104,7 +104,7 @@ def export(
     }
     with tempfile.TemporaryDirectory(dir=out.parent if out.parent.exists() else None) as tmp:
         tmp_model = Path(tmp) / "model.onnx"
-        _torch_export(net, example, tmp_model, task.input_key, task.output_key, metadata)
+        to_onnx(net, example, tmp_model, task.input_key, task.output_key, metadata)
         parity = parity_check(net, tmp_model, inputs)
         worst = max(parity["rel_err_b1"], parity["rel_err_b7"])
         if worst > PARITY_TOL:
@@ -217,7 +217,7 @@ def _strip_debug_info(model: Any) -> None:
             graph.doc_string = ""
 
 
-def _torch_export(
+def to_onnx(
     net: torch.nn.Module,
     example: torch.Tensor,
     path: Path,
@@ -225,6 +225,8 @@ def _torch_export(
     output_name: str,
     metadata: dict[str, Any],
 ) -> None:
+    """Export ``net`` (eval mode) to ``path`` with the dynamo exporter: opset :data:`OPSET`, a
+    dynamic batch axis, ``metadata`` as JSON under the ONNX metadata key, no exporter stack traces."""
     import logging
     import warnings
 
@@ -233,6 +235,8 @@ def _torch_export(
     logging.getLogger("torch.onnx").setLevel(logging.ERROR)
     batch = torch.export.Dim("batch", min=1, max=1 << 20)
     with warnings.catch_warnings():
+        # torch 2.13's exporter warns about its own deprecated internals (pytree's LeafSpec) while
+        # decomposing: nothing the caller can change; the parity check afterwards verifies the graph
         warnings.simplefilter("ignore")
         program = torch.onnx.export(
             net,

@@ -190,16 +190,9 @@ def test_learning_hooks_network_and_onnx_export(tmp_path: Path) -> None:
     assert prob.shape == (len(probe), 4) and np.allclose(prob.sum(axis=1), 1.0, atol=1e-5)
     assert np.allclose(prob, shifted, atol=1e-4)  # absolute temperature carries no weight
     path = tmp_path / "t.onnx"
-    torch.onnx.export(
-        net,
-        (torch.from_numpy(probe[:2]),),
-        str(path),
-        dynamo=True,
-        opset_version=18,
-        input_names=["readings"],
-        output_names=["probabilities"],
-        dynamic_shapes={"x": {0: torch.export.Dim("batch")}},
-    )
+    from tactile_learn.export import to_onnx
+
+    to_onnx(net.eval(), torch.from_numpy(probe[:2]), path, "readings", "probabilities", {})
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     for batch in (1, 7):
         got = session.run(None, {"readings": probe[:batch]})[0]
