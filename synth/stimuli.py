@@ -103,14 +103,21 @@ def window_size(
     return int(np.ceil(extent / h)) + 3
 
 
+#: floor of a Hertz contact width (mm), see :func:`_shape`
+_MIN_WIDTH_MM = 1e-6
+
+
 def _shape(kind: str, dx: np.ndarray, dy: np.ndarray, c: ContactBatch, e_star_mpa: float) -> np.ndarray:
     """Unnormalised pressure shape at offsets (dx, dy) mm from each contact's centre.
 
     ``dx``/``dy`` broadcast against per-contact parameters shaped ``(n, 1, 1)``.
     """
     col = (slice(None), None, None)
+    # Hertz widths vanish with the force: floor them at a nanometre so that no 0/0 appears. The
+    # shape of such a contact is then zero on every sub-sample (none lies within a nanometre of its
+    # centre), and ``rasterize`` hands its force to the bilinear point-load fallback.
     if kind == "sphere":
-        a = contact_radius_mm(c.force_n, c.radius_mm, e_star_mpa)[col]
+        a = np.maximum(contact_radius_mm(c.force_n, c.radius_mm, e_star_mpa), _MIN_WIDTH_MM)[col]
         return np.sqrt(np.maximum(1.0 - (dx * dx + dy * dy) / (a * a), 0.0))
     if kind == "punch":
         a = c.radius_mm[col]
@@ -126,7 +133,7 @@ def _shape(kind: str, dx: np.ndarray, dy: np.ndarray, c: ContactBatch, e_star_mp
         inside = (np.abs(along) <= c.length_mm[col] / 2) & (np.abs(across) <= c.width_mm[col] / 2)
         return inside.astype(np.float64)
     if kind == "edge":
-        b = edge_half_width_mm(c.force_n, c.radius_mm, c.length_mm, e_star_mpa)[col]
+        b = np.maximum(edge_half_width_mm(c.force_n, c.radius_mm, c.length_mm, e_star_mpa), _MIN_WIDTH_MM)[col]
         profile = np.sqrt(np.maximum(1.0 - (across / b) ** 2, 0.0))
         return np.where(np.abs(along) <= c.length_mm[col] / 2, profile, 0.0)
     raise ValueError(f"unknown stimulus kind {kind!r}")

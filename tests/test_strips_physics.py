@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy import integrate, signal
@@ -244,3 +246,28 @@ def test_twin_frames_have_identical_contacts() -> None:
     assert out["latent_twin"].all()
     assert np.array_equal(out["latent_force_n"][:, 0], out["latent_force_n"][:, 1])
     assert not np.array_equal(out["latent_xy_mm"][:, 0], out["latent_xy_mm"][:, 1])
+
+
+@pytest.mark.parametrize("kind", ["sphere", "edge"])
+def test_vanishing_hertz_widths_fall_back_to_a_point_load_without_warnings(kind: str) -> None:
+    """Zero or denormal forces give a zero Hertz width: no 0/0, the force still lands in the window."""
+    from synth.stimuli import ContactBatch, rasterize
+
+    force = np.array([0.0, 1e-300, 5e-324, 1e-12, 1.0])
+    n = len(force)
+    contacts = ContactBatch(
+        x_mm=np.full(n, 3.3),
+        y_mm=np.full(n, 4.1),
+        force_n=force,
+        radius_mm=np.full(n, 2.0),
+        width_mm=np.full(n, 1.0),
+        length_mm=np.full(n, 3.0),
+        angle_deg=np.full(n, 30.0),
+    )
+    h = 0.5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        windows = rasterize(kind, contacts, h, 24, 0.5)
+    assert np.isfinite(windows.values).all() and (windows.values >= 0).all()
+    carried = windows.values.sum(axis=(1, 2)) * h * h / 1000
+    assert np.allclose(carried, force, rtol=1e-9, atol=0)
