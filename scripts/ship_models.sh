@@ -50,9 +50,12 @@ thermal() {
 }
 
 thermal_wns() {
-  data thermal_wns 30000 1 thermal_wns-train; data thermal_wns 1000 2 thermal_wns-val; data thermal_wns 300 12 thermal_wns-test
-  $TL train --task thermal --data data/thermal_wns-train --val data/thermal_wns-val --out runs/thermal_wns --epochs 20 --threads 1 --quiet
-  ship thermal_wns thermal_wns thermal_wns-test
+  # 120,000 touches: with 30,000 the same network made 1.7x the errors at 0.5 s
+  data thermal_wns 120000 1 thermal_wns-train120k; data thermal_wns 1000 2 thermal_wns-val
+  data thermal_wns 300 12 thermal_wns-test
+  $TL train --task thermal --data data/thermal_wns-train120k --val data/thermal_wns-val --out runs/thermal_wns120k \
+    --epochs 20 --threads 2 --quiet
+  ship thermal_wns120k thermal_wns thermal_wns-test
 }
 
 mkdir -p data runs models
