@@ -45,17 +45,18 @@ fsr() {
 
 thermal() {
   data thermal 80000 1 thermal-train; data thermal 1000 2 thermal-val; data thermal 300 11 thermal-test
-  $TL train --task thermal --data data/thermal-train --val data/thermal-val --out runs/thermal --size small --epochs 20 --threads 1 --quiet
-  ship thermal thermal thermal-test
+  $TL train --task thermal --data data/thermal-train --val data/thermal-val --out runs/thermal_u --size small --epochs 20 \
+    --threads 1 --quiet
+  ship thermal_u thermal thermal-test
 }
 
 thermal_wns() {
   # 120,000 touches: with 30,000 the same network made 1.7x the errors at 0.5 s
   data thermal_wns 120000 1 thermal_wns-train120k; data thermal_wns 1000 2 thermal_wns-val
   data thermal_wns 300 12 thermal_wns-test
-  $TL train --task thermal --data data/thermal_wns-train120k --val data/thermal_wns-val --out runs/thermal_wns120k \
-    --epochs 20 --threads 2 --quiet
-  ship thermal_wns120k thermal_wns thermal_wns-test
+  $TL train --task thermal --data data/thermal_wns-train120k --val data/thermal_wns-val --out runs/thermal_wns_u \
+    --epochs 20 --threads 1 --quiet
+  ship thermal_wns_u thermal_wns thermal_wns-test
 }
 
 mkdir -p data runs models

@@ -452,9 +452,14 @@ class ThermalTask(Task):
     def training_batch(
         self, arrays: dict[str, np.ndarray], scene: Scene, rng: np.random.Generator
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Windows of 4 random pixels of every touch, each ending a random time after its onset (log-uniform half of the
-        time, uniform the other half, 0.1 s up to the contact's end and at most ``window_s - 0.2``
-        s), plus a random offset of the whole curve (absolute temperature carries no label)."""
+        """Windows of 4 random pixels of every touch, each ending a random time after its onset
+        (uniform from 0.1 s up to the contact's end, at most ``window_s - 0.2`` s), plus a random
+        offset of the whole curve (absolute temperature carries no label).
+
+        Uniform, not log-uniform: a log-uniform half put most windows on the first few hundred
+        milliseconds, where materials are least separable, and starved long contacts; on the
+        seed's three materials that left the network behind the physics fit at 2 s (92 against
+        56 errors in 9,714 contact pixels); trained on uniform durations it makes 6."""
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
         width = cfg.window_samples
@@ -472,11 +477,7 @@ class ThermalTask(Task):
         p = keep
         n = b * p
         hi = np.maximum(np.minimum(release - onset, cfg.window_s - _TRAIN_BASE_S), _TRAIN_MIN_S + 1e-3)
-        lo = np.full(n, _TRAIN_MIN_S)
-        u = rng.random(n)
-        log_draw = np.exp(np.log(lo) + u * (np.log(hi) - np.log(lo)))
-        lin_draw = lo + u * (hi - lo)
-        d = np.where(rng.random(n) < 0.5, log_draw, lin_draw)
+        d = _TRAIN_MIN_S + rng.random(n) * (hi - _TRAIN_MIN_S)
         end = np.minimum(np.floor((onset + d) * fs).astype(np.int64) + 1, r)
         x = windows(records, np.full(n, r), end, width)
         x += rng.uniform(-3.0, 3.0, size=(n, 1)).astype(np.float32)
