@@ -69,6 +69,10 @@ def _check_number(value: Any, tp: type, path: str) -> float | int:
         raise ConfigError(f"{path}: expected an integer, got {value!r}")
     if isinstance(value, float) and not math.isfinite(value):
         raise ConfigError(f"{path}: must be finite, got {value!r}")
+    if tp is float:
+        # + 0.0 turns -0.0 into 0.0: a range [0.0, -0.0] passes the min <= max check, yet numpy's
+        # uniform(0.0, -0.0) refuses it (high - low is -0.0)
+        return float(value) + 0.0
     return tp(value)
 
 

@@ -127,3 +127,19 @@ def test_noise_switch_changes_digest() -> None:
     scene = load_scene("strips16")
     assert scene.with_noise(False).digest != scene.digest
     assert scene.with_noise(False).with_noise(True) == scene
+
+
+def test_negative_zero_is_read_as_zero_and_its_range_samples() -> None:
+    """[0.0, -0.0] passes the min <= max check; numpy's uniform refused it before -0.0 was
+    normalised (found by the thermal stress test)."""
+    import math
+
+    import numpy as np
+
+    from synth.sensors.thermal import make_simulator
+
+    scene = load_scene("thermal_wns")
+    scene = scene.__class__(**{**scene.__dict__, "sensor": replace(scene.sensor, "objects.offset_k", [0.0, -0.0])})
+    assert all(math.copysign(1.0, v) == 1.0 for v in scene.sensor.objects.offset_k)
+    out = make_simulator(scene).simulate(3, np.random.default_rng(0))
+    assert np.isfinite(out["readings"]).all()
