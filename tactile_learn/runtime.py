@@ -96,28 +96,37 @@ class OnnxEstimator(Estimator):
     @property
     def scene_(self) -> Scene:
         """The scene inputs are checked against: the user's (e.g. a calibrated copy of the same
-        sensor, whose check maps its readings to the nominal sensor) or else the card's."""
-        if self.scene is None:
+        sensor, whose check maps its readings to the nominal sensor) or else the card's. The user's
+        scene is checked against the card's once, not on every ``predict``."""
+        scene = self.scene
+        if scene is None:
             return self.card_scene_
-        card_scene = self.card_scene_
-        if self.scene.task != card_scene.task or self.input_shape(self.scene) != self.input_shape(card_scene):
-            raise ModelError(
-                f"{self.path}: the model takes {card_scene.task} inputs of shape {self.input_shape(card_scene)}, "
-                f"scene {self.scene.name!r} gives {self.input_shape(self.scene)}"
-            )
+        checked = self.__dict__.get("_compatible_scene") is scene
+        if not checked:
+            self._check_compatible(scene)
+            self._compatible_scene = scene
+        return scene
+
+    def _check_compatible(self, scene: Scene) -> None:
+        """``scene`` must give the card scene's input shape and name the same output classes."""
         from tactile_learn.tasks import get_task
 
+        card_scene = self.card_scene_
+        if scene.task != card_scene.task or self.input_shape(scene) != self.input_shape(card_scene):
+            raise ModelError(
+                f"{self.path}: the model takes {card_scene.task} inputs of shape {self.input_shape(card_scene)}, "
+                f"scene {scene.name!r} gives {self.input_shape(scene)}"
+            )
         task = get_task(card_scene.task)
-        model_labels, scene_labels = task.output_labels(card_scene), task.output_labels(self.scene)
+        model_labels, scene_labels = task.output_labels(card_scene), task.output_labels(scene)
         if model_labels != scene_labels:
             # same input shape but other classes (e.g. the full material library against the seed's
             # three): the outputs would be read against the wrong names, a silent wrong answer
             raise ModelError(
                 f"{self.path}: the model predicts the classes of scene {card_scene.name!r} "
-                f"({', '.join(model_labels)}), scene {self.scene.name!r} has {', '.join(scene_labels)}; "
+                f"({', '.join(model_labels)}), scene {scene.name!r} has {', '.join(scene_labels)}; "
                 f"evaluate with --scene {card_scene.name} (or a calibrated copy of it)"
             )
-        return self.scene
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         from tactile_learn.tasks import get_task

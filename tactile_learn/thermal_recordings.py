@@ -68,15 +68,20 @@ def _float(text: str, where: str) -> float:
     return value
 
 
+def _read_text(path: Path) -> str:
+    """A CSV's text (a spreadsheet's byte-order mark dropped); unreadable files are a DataError."""
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DataError(f"{path}: cannot be read ({exc})") from None
+
+
 def read_touch(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``time_s`` and ``temperature_c`` of one touch CSV (float64), validated."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: touch file not found")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{path}: cannot be read ({exc})") from None
+    text = _read_text(path)
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise DataError(f"{path}: empty file (expected a header time_s,temperature_c and samples)")
@@ -112,10 +117,7 @@ def read_recordings(path: str | Path, materials: Sequence[str] | None = None) ->
         raise DataError(f"{folder}: no such recording directory")
     if not index.is_file():
         raise DataError(f"{folder}: no {INDEX} (a recording directory lists its touches there: file,material)")
-    try:
-        text = index.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{index}: cannot be read ({exc})") from None
+    text = _read_text(index)
     reader = csv.DictReader(io.StringIO(text), restkey=_EXTRA)
     if not reader.fieldnames:
         raise DataError(f"{index}: empty file (expected a header file,material and one row per touch)")
