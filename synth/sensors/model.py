@@ -1,0 +1,120 @@
+"""The sensor-model contract: one physics operator per sensor, its stimuli drawn apart from it.
+
+Modelled on deepinv's ``Physics`` (``forward = sensor(noise(A(x)))``) and ``PhysicsGenerator``:
+
+* a :class:`SensorModel` maps a *stimulus* (contacts or a pressure field, objects touched, ...) to
+  *readings* in stages, each callable alone so that tests can check the physics of one stage::
+
+      physics(stimulus)       mechanics or heat transfer: the transducer's physical input
+                              (stress at the strips, thermistor temperature, load on each FSR)
+      transduce(physical)     the transducer and its front end: the clean analog signal
+      noise(analog, rng)      additive analog noise
+      adc(analog)             quantisation and the converter's range
+
+  ``forward(stimulus, rng)`` chains them; ``forward(stimulus)`` (no generator) is the noise-free,
+  unquantised signal, the deterministic operator ``A`` that consistency checks push estimates
+  through. ``inverse_readout`` undoes the front end where it is invertible (readings -> physical).
+* a :class:`StimulusGenerator` draws ``n`` stimuli from a scene's distributions (``draw``) and
+  reports their latent parameters and the ground truth the estimators are judged against;
+* :func:`simulate` is the one generic loop every sensor shares: draw -> forward -> the outputs the
+  scene asks for, and nothing else.
+
+A stimulus is a frozen dataclass of batch-first arrays owned by its sensor module; per-sample
+sensor variation (part-to-part gains, a touch's heater power) travels in the stimulus, drawn by the
+generator, so that the model itself is a pure function of (stimulus, rng).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any, Generic, TypeVar
+
+import numpy as np
+
+from synth.sensors.base import ArraySpec
+
+__all__ = ["SensorModel", "StimulusGenerator", "StimulusT", "simulate"]
+
+StimulusT = TypeVar("StimulusT")
+
+
+class SensorModel(ABC, Generic[StimulusT]):
+    """A sensor's forward operator in stages (see the module docstring)."""
+
+    #: the stages in the order ``forward`` applies them (documentation and conformance tests)
+    stages: tuple[str, ...] = ("physics", "transduce", "noise", "adc")
+
+    @abstractmethod
+    def physics(self, stimulus: StimulusT) -> np.ndarray:
+        """Mechanics or heat transfer: the transducer's physical input, batch first, float64."""
+
+    @abstractmethod
+    def transduce(self, physical: np.ndarray, stimulus: StimulusT) -> np.ndarray:
+        """The transducer and its front end: clean analog readings, batch first, float64.
+        ``stimulus`` carries any per-sample sensor variation (gains) the generator drew."""
+
+    @abstractmethod
+    def noise(self, analog: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Analog readings with their noise added (a new array)."""
+
+    @abstractmethod
+    def adc(self, analog: np.ndarray) -> np.ndarray:
+        """Quantised readings clipped to the converter's range."""
+
+    def forward(self, stimulus: StimulusT, rng: np.random.Generator | None = None) -> np.ndarray:
+        """Readings of ``stimulus``: noisy and quantised with ``rng``, the clean signal without."""
+        clean = self.transduce(self.physics(stimulus), stimulus)
+        if rng is None:
+            return clean
+        return self.adc(self.noise(clean, rng))
+
+    def inverse_readout(self, readings: np.ndarray) -> np.ndarray:
+        """The physical input that gives ``readings`` (the front end inverted); not every sensor has one."""
+        raise NotImplementedError(f"{type(self).__name__} has no readout inverse")
+
+    @abstractmethod
+    def reading_spec(self) -> ArraySpec:
+        """Per-sample shape and dtype of the readings as stored (the dataset's ``readings``)."""
+
+
+class StimulusGenerator(ABC, Generic[StimulusT]):
+    """Draws stimuli from a scene's distributions; reports what an estimator is judged against."""
+
+    @abstractmethod
+    def draw(self, n: int, rng: np.random.Generator) -> StimulusT:
+        """``n`` stimuli; the same generator state gives the same stimuli."""
+
+    @abstractmethod
+    def truth(self, stimulus: StimulusT, wanted: tuple[str, ...]) -> dict[str, np.ndarray]:
+        """The wanted ground-truth and latent arrays of ``stimulus`` (only those; batch first)."""
+
+    @abstractmethod
+    def truth_specs(self, wanted: tuple[str, ...]) -> dict[str, ArraySpec]:
+        """Per-sample shape and dtype of every array :meth:`truth` returns for ``wanted``."""
+
+
+def simulate(
+    model: SensorModel[Any],
+    generator: StimulusGenerator[Any],
+    n: int,
+    rng: np.random.Generator,
+    wanted: tuple[str, ...],
+    noise: bool = True,
+) -> dict[str, np.ndarray]:
+    """The generic draw -> forward loop: ``n`` samples of the ``wanted`` outputs.
+
+    ``readings`` are computed only when wanted; with ``noise`` they pass the noise and ADC stages
+    (the generator's random stream is consumed by ``draw`` first, then by the noise, so the stimuli
+    do not depend on whether noise is on). Stored dtypes follow the specs.
+    """
+    stimulus = generator.draw(n, rng)
+    out: dict[str, np.ndarray] = {}
+    if "readings" in wanted:
+        spec = model.reading_spec()
+        out["readings"] = model.forward(stimulus, rng if noise else None).astype(spec.dtype, copy=False)
+    others = tuple(w for w in wanted if w != "readings")
+    if others:
+        specs = generator.truth_specs(others)
+        for key, value in generator.truth(stimulus, others).items():
+            out[key] = np.asarray(value, dtype=specs[key].dtype)
+    return out
