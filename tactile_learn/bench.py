@@ -47,9 +47,10 @@ ERROR_METRIC: dict[str, tuple[str, bool]] = {
     "strips": ("nrmse", True),
     "thermal": ("accuracy", False),
     "fsr": ("loc_err_mm_median", True),
+    "capacitive": ("iou_mean", False),
 }
 #: the seed paper's own algorithm per task: the reference of the ratios
-REFERENCE_METHOD = {"strips": "intersection", "thermal": "curve_match", "fsr": "triangulation"}
+REFERENCE_METHOD = {"strips": "intersection", "thermal": "curve_match", "fsr": "triangulation", "capacitive": "bicubic"}
 BENCH_SEED = 909_090  # held-out frames: no training or validation set uses this seed
 
 

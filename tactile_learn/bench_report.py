@@ -16,6 +16,7 @@ TABLE_METRICS = {
     "strips": ("nrmse", "pearson_r_mean", "pearson_r_median", "peak_err_mm_median"),
     "thermal": ("accuracy", "accuracy_by_duration"),
     "fsr": ("loc_err_mm_median", "loc_err_mm_p95", "force_accuracy", "detect_accuracy"),
+    "capacitive": ("iou_mean", "centroid_err_mm_median", "orientation_err_deg_median", "separation_rate"),
 }
 
 

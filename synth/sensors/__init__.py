@@ -22,6 +22,8 @@ SENSOR_MODULES: dict[str, str] = {
     "strips": "synth.sensors.strips",
     "thermal": "synth.sensors.thermal",
     "fsr": "synth.sensors.fsr",
+    "capacitive": "synth.sensors.capacitive",
+    "fingertip": "synth.sensors.fingertip",
 }
 TASKS: tuple[str, ...] = tuple(SENSOR_MODULES)
 

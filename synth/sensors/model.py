@@ -17,7 +17,12 @@ Modelled on deepinv's ``Physics`` (``forward = sensor(noise(A(x)))``) and ``Phys
 * a :class:`StimulusGenerator` draws ``n`` stimuli from a scene's distributions (``draw``) and
   reports their latent parameters and the ground truth the estimators are judged against;
 * :func:`simulate` is the one generic loop every sensor shares: draw -> forward -> the outputs the
-  scene asks for, and nothing else.
+  scene asks for, and nothing else; :class:`ModelSimulator` wraps it as a scene's
+  :class:`~synth.sensors.base.Simulator` (what ``make_simulator`` returns for the dataset writer).
+
+A stimulus may be a sequence: a press of ``F`` frames is one stimulus whose arrays carry a frames
+axis after the batch axis, and a stage with memory (a dielectric's hysteresis) carries its state
+along that axis inside one call, starting from rest; calls stay independent of each other.
 
 A stimulus is a frozen dataclass of batch-first arrays owned by its sensor module; per-sample
 sensor variation (part-to-part gains, a touch's heater power) travels in the stimulus, drawn by the
@@ -33,7 +38,7 @@ import numpy as np
 
 from synth.sensors.base import ArraySpec
 
-__all__ = ["SensorModel", "StimulusGenerator", "StimulusT", "simulate"]
+__all__ = ["ModelSimulator", "SensorModel", "StimulusGenerator", "StimulusT", "simulate"]
 
 StimulusT = TypeVar("StimulusT")
 
@@ -118,3 +123,28 @@ def simulate(
         for key, value in generator.truth(stimulus, others).items():
             out[key] = np.asarray(value, dtype=specs[key].dtype)
     return out
+
+
+class ModelSimulator:
+    """A scene's simulator for a sensor on this contract: :func:`simulate` with the scene's wanted
+    outputs and noise switch, and the specs of exactly those outputs."""
+
+    def __init__(
+        self, model: SensorModel[Any], generator: StimulusGenerator[Any], wanted: tuple[str, ...], noise: bool = True
+    ) -> None:
+        self.model = model
+        self.generator = generator
+        self.wanted = tuple(wanted)
+        self.noise = noise
+
+    def output_specs(self) -> dict[str, ArraySpec]:
+        specs: dict[str, ArraySpec] = {}
+        if "readings" in self.wanted:
+            specs["readings"] = self.model.reading_spec()
+        others = tuple(w for w in self.wanted if w != "readings")
+        if others:
+            specs.update(self.generator.truth_specs(others))
+        return specs
+
+    def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        return simulate(self.model, self.generator, n, rng, self.wanted, self.noise)

@@ -20,7 +20,7 @@ Learned methods are the shipped models of the task (models/*.onnx whose scene ma
 onnxruntime on 1 and 2 threads and, when torch and NAME.pt are present, torch eager. The JSON schema
 is documented in tactile_learn/bench.py; a Markdown table is printed and written beside the JSON."""
 
-TASKS = ("strips", "thermal", "fsr", "simulator", "all")
+TASKS = ("strips", "thermal", "fsr", "capacitive", "simulator", "all")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     from tactile_learn.bench import bench_simulator, bench_task
     from tactile_learn.bench_report import markdown, pareto_plot
 
-    tasks = ["strips", "thermal", "fsr", "simulator"] if args.task == "all" else [args.task]
+    tasks = ["strips", "thermal", "fsr", "capacitive", "simulator"] if args.task == "all" else [args.task]
     results: list[dict[str, Any]] = []
     for task in tasks:
         if task == "simulator":

@@ -15,6 +15,7 @@ _TASKS: dict[str, str] = {
     "strips": "tactile_learn.tasks.strips:StripsTask",
     "thermal": "tactile_learn.tasks.thermal:ThermalTask",
     "fsr": "tactile_learn.tasks.fsr:FsrTask",
+    "capacitive": "tactile_learn.tasks.capacitive:CapacitiveTask",
 }
 TASK_NAMES: tuple[str, ...] = tuple(_TASKS)
 

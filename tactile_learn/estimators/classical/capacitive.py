@@ -1,0 +1,213 @@
+"""Classical estimators of the capacitive array: calibrated cell loads (B, N, M) in newtons (the
+front end's output, :mod:`tactile_learn.calibration.capacitive`) -> image (B, 2, N s, M s): the
+surface force on every fine pixel (N) and the contact mask (0/1), ``s = samples_per_pitch``.
+
+- ``bicubic`` (:class:`BicubicEstimator`): each cell's load spread over its ``s x s`` pixels by
+  bicubic interpolation (Keys' cubic convolution, ``a = -0.5``, edges replicated), then the mask
+  by threshold: CapContact's baseline for super-resolving a capacitive image.
+- ``deconvolution`` (:class:`DeconvolutionEstimator`): the cover's spreading undone on the fine
+  lattice: the non-negative force image ``p`` minimising
+  ``|K p - x|^2 / sigma^2 + lambda |grad p|^2`` (``K``: the cover's pressure -> tab-load map of
+  :mod:`synth.sensors.capacitive.layer`, ``sigma``: the load noise), by accelerated projected
+  gradient (FISTA) from the bicubic image; then the same threshold.
+
+Both decide that a frame has contact where some cell's load exceeds ``contact_sigmas`` load-noise
+s.d. (an idle frame has no contact), then threshold the image at ``fraction`` of the largest value
+within ``reach`` pixels (each contact against its own peak) and above a per-pixel noise floor.
+The defaults were chosen on validation presses (seed 2; ``scripts/capacitive_results.py tune``),
+not on the test sets. Contact shapes (outline, area, centroid,
+orientation) follow from the image with :mod:`~tactile_learn.estimators.classical.contact_shapes`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from synth.scene import Scene
+from synth.sensors.capacitive.config import CapacitiveConfig
+from synth.sensors.capacitive.layer import KPA_MM2_TO_N, tab_load_operator
+from synth.sensors.capacitive.sensor import load_noise_n
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.classical.contact_shapes import threshold_mask
+from tactile_learn.validation import capacitive_input
+
+__all__ = ["BicubicEstimator", "DeconvolutionEstimator", "bicubic_matrix"]
+
+
+def _keys(d: np.ndarray, a: float = -0.5) -> np.ndarray:
+    """Keys' cubic convolution kernel."""
+    d = np.abs(d)
+    near = ((a + 2) * d - (a + 3)) * d * d + 1
+    far = ((a * d - 5 * a) * d + 8 * a) * d - 4 * a
+    return np.where(d <= 1, near, np.where(d < 2, far, 0.0))
+
+
+def bicubic_matrix(n: int, s: int) -> np.ndarray:
+    """``(n s, n)``: bicubic interpolation of ``n`` cell values at the centres of ``s`` sub-pixels
+    per cell (edge cells replicated beyond the array)."""
+    out = np.zeros((n * s, n))
+    u = (np.arange(n * s) + 0.5) / s - 0.5  # sub-pixel centres in cell-index units
+    base = np.floor(u).astype(int)
+    for j in (-1, 0, 1, 2):
+        idx = base + j
+        np.add.at(out, (np.arange(n * s), np.clip(idx, 0, n - 1)), _keys(u - idx))
+    return out
+
+
+@dataclass(frozen=True)
+class _Upsampler:
+    rows: np.ndarray  # (H, N) float32
+    cols: np.ndarray  # (W, M) float32
+    per_pixel: float  # share of a cell's load on each of its pixels: 1 / s^2
+    floor_n: float  # load-noise s.d. (N)
+
+    def image(self, loads: np.ndarray) -> np.ndarray:
+        """Bicubic force per fine pixel (N), clipped at 0 (the kernel's negative lobes)."""
+        return np.maximum(self.rows @ loads @ self.cols.T, 0.0) * np.float32(self.per_pixel)
+
+
+@lru_cache(maxsize=8)
+def _upsampler(config: CapacitiveConfig) -> _Upsampler:
+    g = config.geometry
+    s = g.samples_per_pitch
+    return _Upsampler(
+        rows=bicubic_matrix(g.n_rows, s).astype(np.float32),
+        cols=bicubic_matrix(g.n_cols, s).astype(np.float32),
+        per_pixel=1.0 / s**2,
+        floor_n=load_noise_n(config),
+    )
+
+
+def _empty(config: CapacitiveConfig) -> np.ndarray:
+    return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
+
+
+def _output(
+    force: np.ndarray, loads: np.ndarray, est: BicubicEstimator | DeconvolutionEstimator, noise_n: float, s: int
+) -> np.ndarray:
+    """Stack the force image and its mask (module docstring: contact test, local threshold)."""
+    touching = loads.reshape(len(loads), -1).max(axis=1, initial=0.0) >= est.contact_sigmas * noise_n
+    mask = threshold_mask(force, est.threshold, est.floor_sigmas * noise_n / s**2, est.reach) & touching[:, None, None]
+    return np.stack([force, mask], axis=1).astype(np.float32)
+
+
+class BicubicEstimator(Estimator):
+    task = "capacitive"
+    name = "bicubic"
+
+    def __init__(
+        self,
+        scene: Scene,
+        threshold: float = 0.4,
+        reach: int = 8,
+        contact_sigmas: float = 5.0,
+        floor_sigmas: float = 4.0,
+    ) -> None:
+        self.scene = scene
+        self.threshold = threshold
+        self.reach = reach
+        self.contact_sigmas = contact_sigmas
+        self.floor_sigmas = floor_sigmas
+
+    def fit(self, X: Any = None, y: Any = None) -> BicubicEstimator:
+        self.upsampler_ = _upsampler(self.scene.sensor)
+        return self
+
+    def predict(self, X: Any) -> np.ndarray:
+        config: CapacitiveConfig = self.scene.sensor
+        loads = capacitive_input(X, config, "cell_load")
+        if not len(loads):
+            return _empty(config)
+        up = self.__dict__.get("upsampler_") or _upsampler(config)
+        return _output(up.image(loads), loads, self, up.floor_n, config.geometry.samples_per_pitch)
+
+
+@dataclass(frozen=True)
+class _Deconvolver:
+    forward: np.ndarray  # (H W, N M) float32: force per pixel (N) -> tab loads (N), for ``p @ forward``
+    step: float  # 1 / Lipschitz constant of the data term's gradient (in noise units)
+    noise_n: float
+
+
+@lru_cache(maxsize=8)
+def _deconvolver(config: CapacitiveConfig, smoothness: float) -> _Deconvolver:
+    g = config.geometry
+    op = tab_load_operator(g, config.cover.thickness_mm)  # (N M, Hp Wp) per kPa
+    hp, wp = g.lattice_shape
+    ny, nx = g.image_shape
+    pad = g.pad_cells
+    inside = op.reshape(-1, hp, wp)[:, pad : pad + ny, pad : pad + nx].reshape(op.shape[0], -1)
+    forward = (inside / (g.h_mm**2 * KPA_MM2_TO_N)).T  # N on the pixel -> N on each tab
+    noise = load_noise_n(config)
+    # gradient of |K p - x|^2 / sigma^2 + lambda |grad p|^2 is Lipschitz with 2 (|K|^2 / sigma^2 + 8 lambda)
+    lipschitz = 2.0 * (np.linalg.norm(forward, 2) ** 2 / noise**2 + 8.0 * smoothness)
+    return _Deconvolver(
+        forward=np.ascontiguousarray(forward, dtype=np.float32), step=float(1.0 / lipschitz), noise_n=noise
+    )
+
+
+def _laplacian(p: np.ndarray) -> np.ndarray:
+    """``grad^T grad p`` with free (Neumann) edges: the smoothness term's gradient / 2."""
+    out = np.zeros_like(p)
+    dy = p[:, 1:, :] - p[:, :-1, :]
+    dx = p[:, :, 1:] - p[:, :, :-1]
+    out[:, 1:, :] += dy
+    out[:, :-1, :] -= dy
+    out[:, :, 1:] += dx
+    out[:, :, :-1] -= dx
+    return out
+
+
+class DeconvolutionEstimator(Estimator):
+    task = "capacitive"
+    name = "deconvolution"
+
+    def __init__(
+        self,
+        scene: Scene,
+        smoothness: float = 300.0,
+        iterations: int = 100,
+        threshold: float = 0.25,
+        reach: int = 0,
+        contact_sigmas: float = 5.0,
+        floor_sigmas: float = 4.0,
+    ) -> None:
+        self.scene = scene
+        self.smoothness = smoothness
+        self.iterations = iterations
+        self.threshold = threshold
+        self.reach = reach
+        self.contact_sigmas = contact_sigmas
+        self.floor_sigmas = floor_sigmas
+
+    def fit(self, X: Any = None, y: Any = None) -> DeconvolutionEstimator:
+        self.upsampler_ = _upsampler(self.scene.sensor)
+        self.deconvolver_ = _deconvolver(self.scene.sensor, float(self.smoothness))
+        return self
+
+    def predict(self, X: Any) -> np.ndarray:
+        config: CapacitiveConfig = self.scene.sensor
+        loads = capacitive_input(X, config, "cell_load")
+        if not len(loads):
+            return _empty(config)
+        up = self.__dict__.get("upsampler_") or _upsampler(config)
+        dec = self.__dict__.get("deconvolver_") or _deconvolver(config, float(self.smoothness))
+        b = len(loads)
+        ny, nx = config.geometry.image_shape
+        target = loads.reshape(b, -1) / np.float32(dec.noise_n)
+        forward = dec.forward / np.float32(dec.noise_n)
+        p = up.image(loads).reshape(b, -1)
+        z, t = p.copy(), 1.0
+        step, lam = np.float32(dec.step), np.float32(self.smoothness)
+        for _ in range(self.iterations):  # FISTA: projected gradient with Nesterov momentum
+            residual = z @ forward - target
+            grad = 2.0 * (residual @ forward.T + lam * _laplacian(z.reshape(b, ny, nx)).reshape(b, -1))
+            p_next = np.maximum(z - step * grad, 0.0)
+            t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
+            z = p_next + np.float32((t - 1.0) / t_next) * (p_next - p)
+            p, t = p_next, t_next
+        return _output(p.reshape(b, ny, nx), loads, self, dec.noise_n, config.geometry.samples_per_pitch)
