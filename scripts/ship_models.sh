@@ -4,7 +4,7 @@
 # measured them. Run from the repository root after `make demo` (or any install of the project).
 # Trainings use one thread each, so that two of them (or a training and the test suite) share the
 # machine's two cores without oversubscribing them.
-#   scripts/ship_models.sh [strips16|strips16_large|strips5|fsr|thermal|thermal_wns ...]   (default: all)
+#   scripts/ship_models.sh [strips16|strips16_large|strips5|fsr|thermal|thermal_wns|capacitive8 ...]   (default: all)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 TL=${TL:-.venv/bin/tactile-learn}
@@ -60,8 +60,21 @@ thermal_wns() {
   ship thermal_wns_u thermal_wns thermal_wns-test
 }
 
+capacitive8() {
+  # the device's calibration comes first: it is part of the scenes the model is trained and run on.
+  # A probe rig presses every cell of the device (seed 1); every scene of that device gets the table.
+  data capacitive8_calib 192 7 capacitive8-calib
+  for scene in capacitive8 fingertip; do
+    $TL calibrate --task capacitive --data data/capacitive8-calib --scene "$scene" --out "synth/scenes/$scene.toml"
+  done
+  data capacitive8 10000 1 capacitive8-train; data capacitive8 250 2 capacitive8-val; data capacitive8 1000 3 capacitive8-test
+  $TL train --task capacitive --data data/capacitive8-train --val data/capacitive8-val --out runs/capacitive8 \
+    --epochs 10 --batch-size 64 --threads 1 --quiet
+  ship capacitive8 capacitive8 capacitive8-test
+}
+
 mkdir -p data runs models
-for target in "${@:-strips16 strips16_large strips5 fsr thermal thermal_wns}"; do
+for target in "${@:-strips16 strips16_large strips5 fsr thermal thermal_wns capacitive8}"; do
   for t in $target; do
     echo "=== $t"
     "$t"

@@ -10,8 +10,13 @@ Per frame (:meth:`FingertipPipeline.step`):
 3. a thermistor is *under contact* when the predicted mask covers at least ``coverage`` of its
    footprint; when none is, the thermal classifier is skipped altogether;
 4. the thermal classifier (the shipped model, through the thermal task's public interface) reads
-   the window of each such thermistor ending at the frame's time and names its material; every
-   contact pixel above that thermistor gets it (``-1``: no contact or not recognised yet).
+   the window of each such thermistor and names its material; every contact pixel above that
+   thermistor gets it (``-1``: no contact or not recognised yet). The window ends at the frame's
+   time, but never later than ``onset_margin_s`` short of a full window after the contact's onset
+   *as the pressure image saw it*: the shipped classifiers were trained on windows that hold the
+   onset and some baseline before it (at least 0.2 s), so a long contact is classified on its
+   first ``window - margin`` seconds. A thermistor in contact for less than ``min_contact_s`` is
+   not classified yet (too early to tell; the thermal evaluation starts at 0.25 s).
 
 ``skip=False`` runs the classifier on every thermistor of every frame (then keeps only the contact
 pixels): the reference the skipping is timed against. This module is the package's only coupling
@@ -32,7 +37,16 @@ from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, FrontEndStr
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.contact_shapes import ContactShape, contact_shapes
 
-__all__ = ["FingertipFrame", "FingertipPipeline"]
+__all__ = ["FingertipFrame", "FingertipPipeline", "FingertipState"]
+
+
+@dataclass
+class FingertipState:
+    """What one episode carries from frame to frame: the front end's hysteresis state and the
+    thermal sample at which each thermistor's current contact began (-1: not in contact)."""
+
+    front_end: FrontEndStream
+    onset: np.ndarray
 
 
 @dataclass
@@ -43,6 +57,7 @@ class FingertipFrame:
     mask: np.ndarray  # (H, W) bool
     material_map: np.ndarray  # (H, W) int16: material index on contact pixels, -1 elsewhere
     thermistor_material: np.ndarray  # (P,) int: -1 not classified (no contact) or classified "none"
+    touching: np.ndarray  # (P,) bool: under contact in the pressure image
     classified: np.ndarray  # (P,) bool: the thermal classifier ran on this thermistor
     shapes: list[ContactShape] = field(default_factory=list)
     seconds: float = 0.0
@@ -64,6 +79,8 @@ class FingertipPipeline:
         skip: bool = True,
         coverage: float | None = None,
         shapes: bool = True,
+        min_contact_s: float = 0.2,
+        onset_margin_s: float = 0.5,
     ) -> None:
         self.scene = scene
         self.capacitive_method = capacitive_method
@@ -71,6 +88,8 @@ class FingertipPipeline:
         self.skip = skip
         self.coverage = coverage
         self.shapes = shapes
+        self.min_contact_s = min_contact_s
+        self.onset_margin_s = onset_margin_s
 
     @property
     def config(self) -> FingertipConfig:
@@ -93,30 +112,37 @@ class FingertipPipeline:
         self.thermal_: Estimator = resolve_method("thermal", self.thermal_method, self.thermal_scene_)
         self.footprints_ = cfg.footprints()
         self.window_ = cfg.thermal.window_samples
+        fs = cfg.thermal.readout.sampling_hz
+        self.min_samples_ = round(self.min_contact_s * fs)
+        self.latest_end_ = max(1, self.window_ - round(self.onset_margin_s * fs))  # samples after onset
         self.none_class_ = len(cfg.thermal.material_list)  # the classifier's last class: touches nothing
         return self
 
-    def stream(self) -> FrontEndStream:
-        """A new episode's front-end state (the cells at rest)."""
-        return self.front_end_.stream()
+    def start(self) -> FingertipState:
+        """A new episode's state: the cells at rest, no thermistor in contact."""
+        return FingertipState(self.front_end_.stream(), np.full(len(self.footprints_), -1, dtype=np.int64))
 
-    def step(self, frame: np.ndarray, record: np.ndarray, sample: int, state: FrontEndStream) -> FingertipFrame:
+    def step(self, frame: np.ndarray, record: np.ndarray, sample: int, state: FingertipState) -> FingertipFrame:
         """One frame: capacitive ``frame`` (N, M) volts, the thermistors' ``record`` (P, R) so far (or
         whole), ``sample`` the index of the thermal sample at the frame's time."""
         start = time.perf_counter()
-        loads = state.push(frame)
+        loads = state.front_end.push(frame)
         image = self.capacitive_.predict(loads[None])[0]
         force, mask = image[0], image[1] >= 0.5
         covered = (mask[None] & self.footprints_).sum(axis=(1, 2)) / self.footprints_[0].sum()
         touching = covered >= (self.coverage if self.coverage is not None else self.config.coverage)
-        run = touching if self.skip else np.ones_like(touching)
+        state.onset = np.where(touching, np.where(state.onset < 0, sample, state.onset), -1)
+        ready = touching & (sample - state.onset >= self.min_samples_)
+        run = ready if self.skip else np.ones_like(touching)
         material = np.full(len(touching), -1, dtype=np.int64)
         if run.any():
-            windows = _windows(record[run], sample, self.window_)
+            # the window keeps the contact's onset in view (module docstring, 4)
+            end = np.where(ready, np.minimum(sample, state.onset + self.latest_end_), sample)[run]
+            windows = _windows(record[run], end, self.window_)
             proba = _probabilities(self.thermal_, windows)
             guess = proba.argmax(axis=1)
             material[run] = np.where(guess == self.none_class_, -1, guess)
-        material = np.where(touching, material, -1)
+        material = np.where(ready, material, -1)
         material_map = np.full(mask.shape, -1, dtype=np.int16)
         for j in np.flatnonzero(touching):
             material_map[self.footprints_[j] & mask] = material[j]
@@ -126,6 +152,7 @@ class FingertipPipeline:
             mask=mask,
             material_map=material_map,
             thermistor_material=material,
+            touching=touching,
             classified=run,
             shapes=shapes,
             seconds=time.perf_counter() - start,
@@ -135,19 +162,19 @@ class FingertipPipeline:
         """Every frame of one episode: capacitive ``readings`` (F, N, M), thermistor ``record`` (P, R)."""
         cfg = self.config
         fs = cfg.thermal.readout.sampling_hz
-        state = self.stream()
+        state = self.start()
         samples = np.floor(cfg.frame_times_s[: len(readings)] * fs + 1e-9).astype(int)
         return [self.step(readings[f], record, int(samples[f]), state) for f in range(len(readings))]
 
 
-def _windows(record: np.ndarray, sample: int, width: int) -> np.ndarray:
-    """The ``width`` samples ending at ``sample`` (inclusive) of every row, the first repeated before
-    the record starts: what the thermal classifier reads "now"."""
+def _windows(record: np.ndarray, end: np.ndarray | int, width: int) -> np.ndarray:
+    """The ``width`` samples ending at sample ``end`` (inclusive; one per row or one for all) of
+    every row, the first repeated before the record starts: what the thermal classifier reads."""
     from tactile_learn.tasks.thermal import windows
 
     rows = np.asarray(record, dtype=np.float32)
     n = len(rows)
-    return windows(rows, np.full(n, rows.shape[1]), np.full(n, sample + 1), width)
+    return windows(rows, np.full(n, rows.shape[1]), np.broadcast_to(np.asarray(end) + 1, (n,)), width)
 
 
 def _probabilities(estimator: Estimator, x: np.ndarray) -> np.ndarray:

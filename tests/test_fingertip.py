@@ -68,9 +68,13 @@ def test_thermal_runs_only_under_contact_and_never_on_idle_frames() -> None:
     assert len(stub.calls) == under.any(axis=1).sum()  # one call per frame with contact, none otherwise
     assert stub.calls == [int(row.sum()) for row in under if row.any()]
     assert under.any() and not under.all()
+    since = np.zeros(16)
     for fr in frames:
         covered = (fr.mask[None] & pipe.footprints_).sum(axis=(1, 2)) / pipe.footprints_[0].sum()
-        assert np.array_equal(fr.classified, covered >= scene.sensor.coverage)
+        touching = covered >= scene.sensor.coverage
+        since = np.where(touching, since + 1, 0)  # frames in contact, this one included
+        # classified: under contact for at least min_contact_s (0.2 s: the third frame at 10 Hz)
+        assert np.array_equal(fr.classified, touching & (since >= 3))
         assert ((fr.material_map >= 0) == (fr.mask & pipe.footprints_[fr.classified].any(axis=0))).all()
         assert (fr.material_map[fr.material_map >= 0] == 1).all()
     everything = FingertipPipeline(scene, capacitive_method="bicubic", skip=False).fit()

@@ -97,6 +97,10 @@ OUTPUTS: dict[str, str] = {
 DEFAULT_OUTPUTS = ("readings", "latent")
 
 
+#: episodes rasterised at once (bounds the memory of a 1024-episode chunk)
+_EPISODES_PER_BATCH = 64
+
+
 def press_profile(times: np.ndarray, onset: np.ndarray, release: np.ndarray, ramp_s: float) -> np.ndarray:
     """Load fraction ``(B, F, K)`` at ``times`` (F,) for contacts pressing from ``onset`` to
     ``release`` (B, K): up over ``ramp_s`` after onset, down over ``ramp_s`` before release."""
@@ -157,10 +161,27 @@ class FingertipSimulator:
         return specs
 
     def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        cfg = self.config
         th = self.thermal.simulate(n, rng)  # type: ignore[attr-defined]
         contacts = self.cap_stimuli.draw_contacts(n, rng)
         drift = self.cap_stimuli.draw_drift(n, self.frames, rng)
+        parts = []
+        # an episode's frames on the fine lattice take ~0.5 MB: rasterised 64 episodes at a time
+        for lo in range(0, n, _EPISODES_PER_BATCH):
+            sel = slice(lo, min(n, lo + _EPISODES_PER_BATCH))
+            part = {k: v[sel] for k, v in th.items()}
+            parts.append(self._episodes(part, {k: v[sel] for k, v in contacts.items()}, drift[sel], rng))
+        if not parts:
+            return {k: np.zeros((0, *s.shape), dtype=s.dtype) for k, s in self.output_specs().items()}
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+    def _episodes(
+        self,
+        th: dict[str, np.ndarray],
+        contacts: dict[str, np.ndarray],
+        drift: np.ndarray,
+        rng: np.random.Generator,
+    ) -> dict[str, np.ndarray]:
+        cfg = self.config
         k = contacts["present"].shape[1]
         obj = np.asarray(th["latent_object"]).astype(np.int64)  # (n, P)
         objects = int(obj.max(initial=0)) + 1

@@ -127,6 +127,11 @@ class CapacitiveTask(Task):
     def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
         path = Path(source)
         arrays, scene = self.read_arrays(path, scene)
+        return self.eval_data(arrays, scene, str(path))
+
+    def eval_data(self, arrays: dict[str, np.ndarray], scene: Scene, source: str = "<arrays>") -> EvalData:
+        """Evaluation frames from a dataset's arrays (presses through the scene's front end)."""
+        path = source
         config = capacitive_config(scene)
         g = config.geometry
         missing = [k for k in ("readings", "force_image", "contact_mask") if k not in arrays]
@@ -169,7 +174,7 @@ class CapacitiveTask(Task):
             },
             scene=scene,
             extra=extra,
-            source=str(path),
+            source=source,
         )
 
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:

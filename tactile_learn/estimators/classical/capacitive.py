@@ -63,7 +63,6 @@ class _Upsampler:
     rows: np.ndarray  # (H, N) float32
     cols: np.ndarray  # (W, M) float32
     per_pixel: float  # share of a cell's load on each of its pixels: 1 / s^2
-    floor_n: float  # load-noise s.d. (N)
 
     def image(self, loads: np.ndarray) -> np.ndarray:
         """Bicubic force per fine pixel (N), clipped at 0 (the kernel's negative lobes)."""
@@ -78,25 +77,41 @@ def _upsampler(config: CapacitiveConfig) -> _Upsampler:
         rows=bicubic_matrix(g.n_rows, s).astype(np.float32),
         cols=bicubic_matrix(g.n_cols, s).astype(np.float32),
         per_pixel=1.0 / s**2,
-        floor_n=load_noise_n(config),
     )
 
 
-def _empty(config: CapacitiveConfig) -> np.ndarray:
-    return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
+class _ContactImageEstimator(Estimator):
+    """Shared by both methods: the input check, the contact test and the thresholded mask (module
+    docstring); a method supplies the force image of calibrated loads (:meth:`_force`)."""
 
-
-def _output(
-    force: np.ndarray, loads: np.ndarray, est: BicubicEstimator | DeconvolutionEstimator, noise_n: float, s: int
-) -> np.ndarray:
-    """Stack the force image and its mask (module docstring: contact test, local threshold)."""
-    touching = loads.reshape(len(loads), -1).max(axis=1, initial=0.0) >= est.contact_sigmas * noise_n
-    mask = threshold_mask(force, est.threshold, est.floor_sigmas * noise_n / s**2, est.reach) & touching[:, None, None]
-    return np.stack([force, mask], axis=1).astype(np.float32)
-
-
-class BicubicEstimator(Estimator):
     task = "capacitive"
+
+    def __init__(
+        self, scene: Scene, threshold: float, reach: int, contact_sigmas: float = 5.0, floor_sigmas: float = 4.0
+    ) -> None:
+        self.scene = scene
+        self.threshold = threshold
+        self.reach = reach
+        self.contact_sigmas = contact_sigmas
+        self.floor_sigmas = floor_sigmas
+
+    def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:
+        raise NotImplementedError
+
+    def predict(self, X: Any) -> np.ndarray:
+        config: CapacitiveConfig = self.scene.sensor
+        loads = capacitive_input(X, config, "cell_load")
+        if not len(loads):
+            return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
+        force = self._force(loads, config)
+        noise = load_noise_n(config)
+        touching = loads.reshape(len(loads), -1).max(axis=1) >= self.contact_sigmas * noise
+        floor = self.floor_sigmas * noise / config.geometry.samples_per_pitch**2  # a cell's noise over its pixels
+        mask = threshold_mask(force, self.threshold, floor, self.reach) & touching[:, None, None]
+        return np.stack([force, mask], axis=1).astype(np.float32)
+
+
+class BicubicEstimator(_ContactImageEstimator):
     name = "bicubic"
 
     def __init__(
@@ -107,23 +122,15 @@ class BicubicEstimator(Estimator):
         contact_sigmas: float = 5.0,
         floor_sigmas: float = 4.0,
     ) -> None:
-        self.scene = scene
-        self.threshold = threshold
-        self.reach = reach
-        self.contact_sigmas = contact_sigmas
-        self.floor_sigmas = floor_sigmas
+        super().__init__(scene, threshold, reach, contact_sigmas, floor_sigmas)
 
     def fit(self, X: Any = None, y: Any = None) -> BicubicEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
         return self
 
-    def predict(self, X: Any) -> np.ndarray:
-        config: CapacitiveConfig = self.scene.sensor
-        loads = capacitive_input(X, config, "cell_load")
-        if not len(loads):
-            return _empty(config)
-        up = self.__dict__.get("upsampler_") or _upsampler(config)
-        return _output(up.image(loads), loads, self, up.floor_n, config.geometry.samples_per_pitch)
+    def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:
+        up: _Upsampler = self.__dict__.get("upsampler_") or _upsampler(config)
+        return up.image(loads)
 
 
 @dataclass(frozen=True)
@@ -162,8 +169,7 @@ def _laplacian(p: np.ndarray) -> np.ndarray:
     return out
 
 
-class DeconvolutionEstimator(Estimator):
-    task = "capacitive"
+class DeconvolutionEstimator(_ContactImageEstimator):
     name = "deconvolution"
 
     def __init__(
@@ -176,26 +182,18 @@ class DeconvolutionEstimator(Estimator):
         contact_sigmas: float = 5.0,
         floor_sigmas: float = 4.0,
     ) -> None:
-        self.scene = scene
+        super().__init__(scene, threshold, reach, contact_sigmas, floor_sigmas)
         self.smoothness = smoothness
         self.iterations = iterations
-        self.threshold = threshold
-        self.reach = reach
-        self.contact_sigmas = contact_sigmas
-        self.floor_sigmas = floor_sigmas
 
     def fit(self, X: Any = None, y: Any = None) -> DeconvolutionEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
         self.deconvolver_ = _deconvolver(self.scene.sensor, float(self.smoothness))
         return self
 
-    def predict(self, X: Any) -> np.ndarray:
-        config: CapacitiveConfig = self.scene.sensor
-        loads = capacitive_input(X, config, "cell_load")
-        if not len(loads):
-            return _empty(config)
-        up = self.__dict__.get("upsampler_") or _upsampler(config)
-        dec = self.__dict__.get("deconvolver_") or _deconvolver(config, float(self.smoothness))
+    def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:
+        up: _Upsampler = self.__dict__.get("upsampler_") or _upsampler(config)
+        dec: _Deconvolver = self.__dict__.get("deconvolver_") or _deconvolver(config, float(self.smoothness))
         b = len(loads)
         ny, nx = config.geometry.image_shape
         target = loads.reshape(b, -1) / np.float32(dec.noise_n)
@@ -210,4 +208,4 @@ class DeconvolutionEstimator(Estimator):
             t_next = (1.0 + np.sqrt(1.0 + 4.0 * t * t)) / 2.0
             z = p_next + np.float32((t - 1.0) / t_next) * (p_next - p)
             p, t = p_next, t_next
-        return _output(p.reshape(b, ny, nx), loads, self, dec.noise_n, config.geometry.samples_per_pitch)
+        return p.reshape(b, ny, nx)
