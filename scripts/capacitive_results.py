@@ -5,7 +5,7 @@
     python scripts/capacitive_results.py fingertip --method capacitive8 --json results/fingertip.json
     python scripts/capacitive_results.py tune --json results/capacitive-tune.json
 
-- ``calibration``: fit the capacitive8 device from the rig's presses (``capacitive8_calib``, seed 7),
+- ``calibration``: fit the capacitive8 device from the rig's presses (``capacitive8_rig``, seed 7),
   compare the table with the device's true parameters, then the cell-load error on held-out presses
   (``capacitive8``, seed 3) of three front ends: the nominal design (uncalibrated), calibrated
   without hysteresis compensation, calibrated and compensated.
@@ -43,7 +43,7 @@ from tactile_learn.tasks.capacitive import front_end_errors
 
 
 def calibration(args: argparse.Namespace) -> dict[str, Any]:
-    rig = load_scene("capacitive8_calib")
+    rig = load_scene("capacitive8_rig")
     presses = simulate_shard(rig, 7, 0, 192)
     start = time.perf_counter()
     table, summary = fit_calibration(presses["readings"], presses["cell_load"], rig.sensor)

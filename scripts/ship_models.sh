@@ -63,9 +63,9 @@ thermal_wns() {
 capacitive8() {
   # the device's calibration comes first: it is part of the scenes the model is trained and run on.
   # A probe rig presses every cell of the device (seed 1); every scene of that device gets the table.
-  data capacitive8_calib 192 7 capacitive8-calib
+  data capacitive8_rig 192 7 capacitive8-rig
   for scene in capacitive8 fingertip; do
-    $TL calibrate --task capacitive --data data/capacitive8-calib --scene "$scene" --out "synth/scenes/$scene.toml"
+    $TL calibrate --task capacitive --data data/capacitive8-rig --scene "$scene" --out "synth/scenes/$scene.toml"
   done
   data capacitive8 10000 1 capacitive8-train; data capacitive8 250 2 capacitive8-val; data capacitive8 1000 3 capacitive8-test
   $TL train --task capacitive --data data/capacitive8-train --val data/capacitive8-val --out runs/capacitive8 \

@@ -23,9 +23,9 @@ def tiny_capacitive_scene(rows: int = 4, cols: int = 3, calibration: bool = Fals
 
 
 def calibration_rig(scene: Scene, frames: int = 10) -> Scene:
-    """A probe on every cell of ``scene``'s device, load-unload cycles (capacitive8_calib's rig)."""
+    """A probe on every cell of ``scene``'s device, load-unload cycles (capacitive8_rig's rig)."""
     data = scene.to_dict()
-    rig = load_scene("capacitive8_calib").to_dict()["capacitive"]["stimuli"]
+    rig = load_scene("capacitive8_rig").to_dict()["capacitive"]["stimuli"]
     data["capacitive"]["stimuli"] = {**rig, "frames": frames}
     data["capacitive"].pop("calibration", None)
     data["name"] = f"{scene.name}_rig"

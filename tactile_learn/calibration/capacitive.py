@@ -13,7 +13,7 @@ with the design's tab curve ``C`` (geometry and dielectric from the scene), and 
 least squares (``scipy.optimize.least_squares``, trust region, finite differences over the
 Jacobian's sparsity: a cell's parameters reach only its own and its neighbours' readings) from
 readings whose cell loads ``F`` are known: a rig pressing a probe on every cell through
-load-unload cycles (``synth/scenes/capacitive8_calib.toml``; the loads at the tabs come from the
+load-unload cycles (``synth/scenes/capacitive8_rig.toml``; the loads at the tabs come from the
 rig's force through the cover's spreading).
 
 **Front end** (:class:`CapacitiveFrontEnd`): readings of whole presses -> cell loads (N): the
@@ -246,7 +246,7 @@ def fit_calibration(
         more = ", ..." if len(idle) > 6 else ""
         raise DataError(
             f"{len(idle)} cell(s) never loaded to a quarter of the full scale ({names}{more}): "
-            "press a probe on every cell through its range (e.g. generate --scene capacitive8_calib)"
+            "press a probe on every cell through its range (e.g. generate --scene capacitive8_rig)"
         )
     noise = max(CapacitiveModel(config).noise_v, 1e-6)
     layout = _Layout(cells, presses)

@@ -22,7 +22,7 @@ from torch import nn
 from synth.scene import Scene
 from tactile_learn.estimators.classical.capacitive import bicubic_matrix
 
-__all__ = ["SIZES", "CapacitiveNet", "build_capacitive_net", "capacitive_loss", "input_stats"]
+__all__ = ["SIZES", "CapacitiveNet", "build_capacitive_net", "capacitive_loss", "gap_weights", "input_stats"]
 
 #: size -> (taxel-grid channels, half-resolution channels)
 SIZES: dict[str, tuple[int, int]] = {"small": (48, 24), "large": (64, 32)}
@@ -103,12 +103,33 @@ def build_capacitive_net(size: str, scene: Scene, stats: dict[str, Any]) -> Capa
     return CapacitiveNet(scene, stats, size)
 
 
-def capacitive_loss(raw: torch.Tensor, force: torch.Tensor, mask: torch.Tensor, force_scale: float) -> torch.Tensor:
-    """Force MSE in units of the force scale, plus the mask's binary cross-entropy and soft Dice
-    (masks cover a few percent of the pixels: Dice keeps small contacts from being ignored)."""
+def gap_weights(mask: np.ndarray, weight: float = 10.0, sigma_px: float = 1.5) -> np.ndarray:
+    """Per-pixel weights of the mask loss: 1, plus ``weight exp(-(d1 + d2)^2 / (2 sigma^2))`` on pixels
+    outside the mask at distances ``d1 <= d2`` from the two nearest contacts (U-Net's border weights,
+    Ronneberger et al. 2015): the few pixels that keep two nearby contacts apart count as much as a
+    contact's whole outline."""
+    from scipy import ndimage
+
+    from tactile_learn.estimators.classical.contact_shapes import label_contacts
+
+    mask = np.asarray(mask, dtype=bool)
+    labels, counts = label_contacts(mask)
+    out = np.ones(mask.shape, dtype=np.float32)
+    for b in np.flatnonzero(counts >= 2):
+        dist = np.sort(np.stack([ndimage.distance_transform_edt(labels[b] != c) for c in range(1, counts[b] + 1)]), 0)
+        out[b] += np.where(mask[b], 0.0, weight * np.exp(-((dist[0] + dist[1]) ** 2) / (2 * sigma_px**2)))
+    return out
+
+
+def capacitive_loss(
+    raw: torch.Tensor, force: torch.Tensor, mask: torch.Tensor, force_scale: float, weight: torch.Tensor | None = None
+) -> torch.Tensor:
+    """Force MSE in units of the force scale, plus the mask's binary cross-entropy (``weight``: per
+    pixel, :func:`gap_weights`) and soft Dice (masks cover a few percent of the pixels: Dice keeps
+    small contacts from being ignored)."""
     force_term = ((raw[:, 0] - force) / force_scale).pow(2).mean()
     logits = raw[:, 1]
-    bce = nn.functional.binary_cross_entropy_with_logits(logits, mask)
+    bce = nn.functional.binary_cross_entropy_with_logits(logits, mask, weight=weight)
     prob = torch.sigmoid(logits).flatten(1)
     target = mask.flatten(1)
     inter = (prob * target).sum(dim=1)

@@ -16,7 +16,7 @@ separation of two nearby contacts); reference metrics (``--reference``): the cal
 error against the true tab loads.
 
 Calibration (``calibrate``): presses of known cell loads (``readings`` and ``cell_load``, e.g. a
-``generate --scene capacitive8_calib`` dataset) fit the device's table
+``generate --scene capacitive8_rig`` dataset) fit the device's table
 (:func:`~tactile_learn.calibration.capacitive.fit_calibration`); the output is the scene with its
 ``[capacitive.calibration]`` table set (comments of a shipped scene kept).
 """
@@ -243,7 +243,8 @@ class CapacitiveTask(Task):
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Calibrated loads of every frame and its true images, each frame flipped and (on a square
         array) transposed at random: the cover, tabs and readout are symmetric, and calibrated loads
-        no longer carry the device's per-cell differences."""
+        no longer carry the device's per-cell differences. The mask loss's weights stress the gaps
+        between nearby contacts (:func:`~tactile_learn.nets.capacitive.gap_weights`)."""
         loads = self.example_inputs(arrays, scene)
         g = capacitive_config(scene).geometry
         force = np.asarray(arrays["force_image"], dtype=np.float32).reshape(-1, *g.image_shape)
@@ -259,7 +260,10 @@ class CapacitiveTask(Task):
         ):
             if sel.any():
                 loads[sel], force[sel], mask[sel] = op(loads[sel]), op(force[sel]), op(mask[sel])
-        return np.ascontiguousarray(loads), {"force_image": force, "contact_mask": mask}
+        from tactile_learn.nets.capacitive import gap_weights
+
+        targets = {"force_image": force, "contact_mask": mask, "mask_weight": gap_weights(mask > 0.5)}
+        return np.ascontiguousarray(loads), targets
 
     def build_net(self, size: str, scene: Scene, stats: dict[str, Any]) -> torch.nn.Module:
         from tactile_learn.nets.capacitive import build_capacitive_net
@@ -274,7 +278,7 @@ class CapacitiveTask(Task):
 
         force = targets["force_image"]
         scale = force[force > 0].pow(2).mean().sqrt().clamp_min(1e-6) if bool((force > 0).any()) else force.sum() + 1
-        return capacitive_loss(output, force, targets["contact_mask"], float(scale))
+        return capacitive_loss(output, force, targets["contact_mask"], float(scale), targets.get("mask_weight"))
 
 
 _HEADER = (
