@@ -91,7 +91,9 @@ def separation(pred: np.ndarray, mask: np.ndarray, h_mm: float) -> tuple[np.ndar
         overlap = np.array(
             [[np.any((p_labels[i] == p) & (t_labels[i] == t)) for t in (1, 2)] for p in (1, 2)], dtype=bool
         )
-        separated[i] = (overlap[0, 0] and overlap[1, 1]) or (overlap[0, 1] and overlap[1, 0])
+        # one-to-one: each predicted contact overlaps exactly one true contact, a different one each
+        # (a blob over both plus a sliver beside one is not a separation)
+        separated[i] = bool(overlap.sum(axis=1).tolist() == [1, 1] and overlap.sum(axis=0).tolist() == [1, 1])
     return eligible, gap, separated
 
 

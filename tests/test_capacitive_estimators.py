@@ -120,5 +120,14 @@ def test_metrics_of_a_perfect_and_of_a_merged_prediction() -> None:
     merged[1, 9:11, 8:18] = True  # a bridge joins the two contacts
     eligible, gap, separated = separation(np.stack([force, merged.astype(float)], axis=1), mask, 0.45)
     assert eligible.tolist() == [False, True] and not separated[1] and gap[1] > 0
+    # two predicted blobs, one over both contacts and a sliver of one: not a separation
+    truth = np.zeros((1, 8, 16), dtype=bool)
+    truth[0, 2:6, 2:6] = truth[0, 2:6, 8:14] = True
+    pred = np.zeros((1, 2, 8, 16))
+    pred[0, 1, 2:6, 2:11] = pred[0, 1, 2:6, 12:14] = 1.0
+    assert not separation(pred, truth, 0.45)[2][0]
+    pred[0, 1, 2:6, 6:8] = 0.0  # cut at the true gap: now each blob is one contact
+    pred[0, 1, 2:6, 8:14] = 1.0
+    assert separation(pred, truth, 0.45)[2][0]
     with pytest.raises(ValueError, match="does not match"):
         contact_metrics(perfect[:, :1], force, mask, 0.45)
