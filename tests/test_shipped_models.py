@@ -21,6 +21,7 @@ CHECKS = {
     "strips": (600, [("pearson_r_mean", True, 0.015), ("nrmse", False, 0.04)]),
     "fsr": (3000, [("force_accuracy", True, 0.02), ("loc_err_mm_median", False, 0.15)]),
     "thermal": (60, [("accuracy", True, 0.06)]),
+    "capacitive": (100, [("iou_mean", True, 0.02), ("centroid_err_mm_median", False, 0.02)]),
 }
 
 
