@@ -64,7 +64,7 @@ capacitive8() {
   # the device's calibration comes first: it is part of the scenes the model is trained and run on.
   # A probe rig presses every cell of the device (seed 1); every scene of that device gets the table.
   data capacitive8_rig 192 7 capacitive8-rig
-  for scene in capacitive8 fingertip; do
+  for scene in capacitive8 capacitive8_frames fingertip; do
     $TL calibrate --task capacitive --data data/capacitive8-rig --scene "$scene" --out "synth/scenes/$scene.toml"
   done
   data capacitive8 10000 1 capacitive8-train; data capacitive8 250 2 capacitive8-val; data capacitive8 1000 3 capacitive8-test

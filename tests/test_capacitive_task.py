@@ -109,3 +109,14 @@ def test_a_tiny_learned_model_trains_exports_and_runs(small: tuple[Path, Scene])
     other = tiny_capacitive_scene(rows=4, cols=3)
     with pytest.raises(Exception, match="shape"):
         OnnxEstimator(root / "models" / "tiny_cap.onnx", scene=other).predict(np.zeros((1, 4, 3), np.float32))
+
+
+def test_the_shipped_model_reads_single_frames_of_its_device(tmp_path: Path) -> None:
+    frames = load_scene("capacitive8_frames")
+    assert frames.sensor.calibration == load_scene("capacitive8").sensor.calibration  # one device, one table
+    generate(frames, 40, 5, tmp_path / "frames")
+    out = tmp_path / "r.json"
+    args = ["eval", "--task", "capacitive", "--data", str(tmp_path / "frames"), "--method", "capacitive8"]
+    assert main([*args, "--json", str(out)]) == 0
+    result = json.loads(out.read_text())
+    assert result["n_frames"] == 40 and result["metrics"]["iou_mean"] > 0.6

@@ -34,7 +34,7 @@ from scipy import optimize, sparse, stats
 
 from synth.errors import DataError
 from synth.sensors.capacitive.config import CalibrationTable, CapacitiveConfig
-from synth.sensors.capacitive.physics import CellResponse, crosstalk_matrix, play_inverse_step
+from synth.sensors.capacitive.physics import CellResponse, crosstalk_matrix, neighbour_sum, play_inverse_step
 from synth.sensors.capacitive.sensor import CapacitiveModel
 from tactile_learn.validation import capacitive_input
 
@@ -82,7 +82,7 @@ class CapacitiveFrontEnd:
         """Every cell's unloaded reading (crosstalk included) and the drift estimate's noise bias."""
         r = self.response
         own = r.static_volts(np.zeros_like(r.gain))
-        read = own + r.crosstalk * _neighbours(own)
+        read = own + r.crosstalk * neighbour_sum(own)
         noise = CapacitiveModel(self.config).noise_v
         return read, noise * _lower_quarter_bias(own.size)
 
@@ -143,12 +143,6 @@ class FrontEndStream:
     def reset(self) -> None:
         """The cells at rest again (a new press)."""
         self.state = None
-
-
-def _neighbours(x: np.ndarray) -> np.ndarray:
-    from synth.sensors.capacitive.physics import neighbour_sum
-
-    return neighbour_sum(x)
 
 
 # ---- fitting -------------------------------------------------------------------------------------
@@ -221,24 +215,14 @@ def _sparsity(config: CapacitiveConfig, presses: int, frames: int) -> sparse.csr
     return sparse.csr_matrix((np.ones(len(r), dtype=bool), (r, c)), shape=(rows.size, layout.size))
 
 
-def fit_calibration(
-    readings: np.ndarray, loads: np.ndarray, config: CapacitiveConfig, max_nfev: int = 200
-) -> tuple[CalibrationTable, dict[str, Any]]:
-    """A device's :class:`CalibrationTable` from presses of known cell loads.
-
-    ``readings`` (B, F, N, M) volts and ``loads`` (B, F, N, M) newtons at the tabs. Every cell must be
-    loaded well into its range by some press (else its curve is not determined). Returns the table
-    and a summary (residual, iterations, cells' largest load).
-    """
-    volts = capacitive_input(readings, config, "readings").astype(np.float64)
-    truth = np.asarray(loads, dtype=np.float64)
+def _check_presses(volts: np.ndarray, truth: np.ndarray, config: CapacitiveConfig) -> None:
+    """Known loads for every reading, and every cell loaded well into its range by some press."""
     if truth.shape != volts.shape:
         raise DataError(f"cell loads have shape {truth.shape}, readings {volts.shape}: one load per reading")
     if not np.isfinite(truth).all() or (truth < 0).any():
         raise DataError("cell loads must be finite and >= 0 (N)")
-    presses, frames = volts.shape[:2]
     cells = config.n_cells
-    peak = truth.reshape(presses * frames, cells).max(axis=0) if presses else np.zeros(cells)
+    peak = truth.reshape(-1, cells).max(axis=0) if truth.size else np.zeros(cells)
     idle = np.flatnonzero(peak < 0.25 * config.readout.full_scale_n)
     if len(idle):
         rows, cols = np.divmod(idle, config.geometry.n_cols)
@@ -248,22 +232,41 @@ def fit_calibration(
             f"{len(idle)} cell(s) never loaded to a quarter of the full scale ({names}{more}): "
             "press a probe on every cell through its range (e.g. generate --scene capacitive8_rig)"
         )
-    noise = max(CapacitiveModel(config).noise_v, 1e-6)
-    layout = _Layout(cells, presses)
+
+
+def _initial_guess(config: CapacitiveConfig, volts: np.ndarray, layout: _Layout) -> np.ndarray:
+    """The nominal device, the design's crosstalk and loop, each press's offset from its first frame."""
+    c = layout.cells
     x0 = np.zeros(layout.size)
-    x0[2 * cells] = config.readout.crosstalk
-    x0[2 * cells + 1] = 0.0  # a = 0.5
-    x0[2 * cells + 2] = np.log(max(config.hysteresis.width, 1e-3))
-    # each press's offset from its first frame's least-read cells (a good start; the fit refines it)
-    design = CapacitiveFrontEnd(config, calibration="nominal")
-    x0[2 * cells + 3 : 2 * cells + 3 + presses] = design.offsets(volts[:, 0])
+    x0[2 * c] = config.readout.crosstalk
+    x0[2 * c + 1] = 0.0  # logistic(0): a = 0.5
+    x0[2 * c + 2] = np.log(max(config.hysteresis.width, 1e-3))
+    x0[2 * c + 3 : 2 * c + 3 + layout.presses] = CapacitiveFrontEnd(config, calibration="nominal").offsets(volts[:, 0])
+    return x0
+
+
+def fit_calibration(
+    readings: np.ndarray, loads: np.ndarray, config: CapacitiveConfig, max_nfev: int = 200
+) -> tuple[CalibrationTable, dict[str, Any]]:
+    """A device's :class:`CalibrationTable` from presses of known cell loads.
+
+    ``readings`` (B, F, N, M) volts and ``loads`` (B, F, N, M) newtons at the tabs. Every cell must be
+    loaded well into its range by some press (else its curve is not determined). Returns the table
+    and a summary (residual against the noise, iterations, the fitted ranges).
+    """
+    volts = capacitive_input(readings, config, "readings").astype(np.float64)
+    truth = np.asarray(loads, dtype=np.float64)
+    _check_presses(volts, truth, config)
+    presses, frames = volts.shape[:2]
+    noise = max(CapacitiveModel(config).noise_v, 1e-6)
+    layout = _Layout(config.n_cells, presses)
 
     def residuals(x: np.ndarray) -> np.ndarray:
         return ((_predict(config, layout.split(x), truth) - volts) / noise).ravel()
 
     result = optimize.least_squares(
         residuals,
-        x0,
+        _initial_guess(config, volts, layout),
         jac_sparsity=_sparsity(config, presses, frames),
         x_scale="jac",
         max_nfev=max_nfev,
