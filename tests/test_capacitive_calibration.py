@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from synth.dataset import generate, simulate_shard
 from synth.errors import InputError
@@ -18,6 +20,7 @@ from synth.sensors.capacitive.physics import device_cells
 from synth.sensors.capacitive.sensor import load_noise_n
 from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, fit_calibration
 from tactile_learn.cli import main
+from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator
 from tests.capacitive_scenes import calibration_rig, tiny_capacitive_scene
 
 QUIET = {"drift_v": 0.0, "drift_v_per_frame": 0.0}
@@ -151,3 +154,20 @@ def test_calibrate_refuses_another_device_and_incomplete_presses(workdir: Path, 
     assert main([*args, "one.npz"]) == 2
     assert "never loaded" in capsys.readouterr().err
     assert not (workdir / "cal.toml").exists()
+
+
+@given(
+    st.floats(0.0, 1.0),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from(["scene", "nominal"]),
+)
+def test_any_reading_within_the_adc_gives_finite_loads_and_images(level: float, seed: int, table: str) -> None:
+    scene = load_scene("capacitive8")
+    top = scene.sensor.readout.full_scale_v
+    rng = np.random.default_rng(seed)
+    readings = np.clip(level * top * (1 + 0.5 * rng.standard_normal((2, 3, 8, 8))), 0.0, 0.999 * top)
+    loads = CapacitiveFrontEnd(scene.sensor, calibration=table).loads(readings)
+    assert np.isfinite(loads).all()
+    frames = np.maximum(loads.reshape(-1, 8, 8), -0.1 * scene.sensor.readout.full_scale_n)  # the input floor
+    for method in (BicubicEstimator, DeconvolutionEstimator):
+        assert np.isfinite(method(scene).fit().predict(frames)).all()
