@@ -1,0 +1,99 @@
+"""Is an FSR frame one round press at all? The check behind the ``p_one_press`` column.
+
+Every FSR estimator (triangulation and the learned model alike) answers with *one* position and
+force. Two simultaneous presses, or a large flat indenter, load the six discs in a pattern no
+single round press produces, and the estimators still return a position: confident and wrong.
+
+The check pushes the estimate back through the film's forward model (``synth.sensors.fsr``: the
+load path to the discs with the nominal gain and the median tip radius, the FSR law) and compares
+the six modelled conductances with the measured ones. Because an estimate may be a little off even
+for a genuine single press (triangulation's median error is ~3 mm), the estimate is first refined
+by a few damped Gauss-Newton steps on ``(x, y, log F)`` against the readings: the residual is then
+that of the best single press near the estimate. ``residual`` is the RMS conductance misfit over
+the six sensors divided by the RMS measured conductance plus ``floor_us`` (part gains of +/-6 %
+and +/-2 % per press leave a few per cent on genuine presses).
+
+``p_one_press`` is 1 where the residual is at most ``threshold`` and 0 where it is above (a flag,
+not a calibrated probability); frames without a detected contact get 1 (nothing to check). The
+default threshold was set on normal single presses of unseen films (1 % of them flagged, see
+``scripts/fsr_flagging.py``, which also reports how often two presses and flat indenters are caught).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from synth.scene import Scene
+from synth.sensors import fsr
+
+__all__ = ["DEFAULT_THRESHOLD", "OnePressCheck"]
+
+#: residual above which a frame is flagged: the 99th percentile on normal single presses
+DEFAULT_THRESHOLD = 0.12
+
+
+class OnePressCheck:
+    """Residual of the best single round press near an estimate, and the flag (module docstring)."""
+
+    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 3, floor_us: float = 5.0):
+        self.scene = scene
+        self.threshold = threshold
+        self.steps = steps
+        self.floor_us = floor_us
+
+    @cached_property
+    def _model(self) -> tuple[fsr.FsrConfig, fsr.FsrLaw, fsr.Readout, float]:
+        config: fsr.FsrConfig = self.scene.sensor
+        return (
+            config,
+            fsr.FsrLaw(config.element),
+            fsr.Readout(config.readout),
+            float(np.median(config.stimulus.tip_radii_mm)),
+        )
+
+    def conductance(self, params: np.ndarray) -> np.ndarray:
+        """Modelled conductances (B, 6) (uS) of presses ``params`` (B, 3): x, y (mm), log force (N)."""
+        config, law, _, tip = self._model
+        force = np.exp(np.clip(params[:, 2], -10.0, 6.0))  # clipped: a diverging step cannot overflow
+        loads = fsr.sensor_loads(config, params[:, :2], force, np.full(len(params), tip))
+        return law.conductance_us(loads, 1.0)
+
+    def residual(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """Relative conductance misfit (B,) of the best single press near ``estimate`` (B, >= 3)
+        for nominal-film ``readings`` (B, 6), or near the sensors' conductance-weighted centroid
+        (a second start: an estimate in the wrong triangle must not pass for a misfit)."""
+        config, _, readout, _ = self._model
+        measured = readout.conductance_us(np.asarray(readings, dtype=np.float64))
+        log_force = np.log(np.clip(estimate[:, 2], 1e-3, None)).astype(np.float64)
+        weights = np.maximum(measured - config.element.leak_conductance_us, 0.0) + 1e-12
+        centroid = (weights @ fsr.sensor_positions(config.layout)) / weights.sum(axis=1, keepdims=True)
+        starts = [np.column_stack([estimate[:, 0], estimate[:, 1], log_force]), np.column_stack([centroid, log_force])]
+        return np.asarray(np.minimum(*(self._refined_misfit(measured, s.astype(np.float64)) for s in starts)))
+
+    def _refined_misfit(self, measured: np.ndarray, params: np.ndarray) -> np.ndarray:
+        step = np.array([0.05, 0.05, 0.01])  # finite-difference steps: mm, mm, log N
+        for _ in range(self.steps):
+            base = self.conductance(params)
+            shifted = np.concatenate([params + np.eye(3)[k] * step[k] for k in range(3)])
+            jac = (self.conductance(shifted).reshape(3, len(params), -1) - base[None]) / step[:, None, None]
+            jac = jac.transpose(1, 2, 0)  # (B, 6, 3)
+            r = measured - base
+            # damped normal equations (Levenberg): a step never jumps far from the estimate
+            jtj = jac.transpose(0, 2, 1) @ jac
+            damping = 1e-3 * np.trace(jtj, axis1=1, axis2=2)[:, None, None] + 1e-9
+            delta = np.linalg.solve(jtj + damping * np.eye(3), (jac.transpose(0, 2, 1) @ r[..., None]))[..., 0]
+            candidate = params + np.clip(delta, [-5.0, -5.0, -1.0], [5.0, 5.0, 1.0])
+            better = np.sum((measured - self.conductance(candidate)) ** 2, axis=1) < np.sum(r**2, axis=1)
+            params = np.where(better[:, None], candidate, params)
+        misfit = np.sqrt(np.mean((measured - self.conductance(params)) ** 2, axis=1))
+        return np.asarray(misfit / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us))
+
+    def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """1 where the frame is explained by one round press (or has no contact), else 0 (B,)."""
+        out = np.ones(len(estimate), dtype=np.float32)
+        contact = estimate[:, 3] > 0.5
+        if contact.any():
+            out[contact] = (self.residual(readings[contact], estimate[contact]) <= self.threshold).astype(np.float32)
+        return out
