@@ -195,13 +195,15 @@ def replace(obj: T, path: str, value: Any) -> T:
     """Return a copy of the config ``obj`` with the dotted ``path`` set to ``value``, validated."""
     data = to_dict(obj)
     node = data
+    target: Any = obj
     keys = path.split(".")
-    for key in keys[:-1]:
-        if not isinstance(node, dict) or key not in node:
+    for key in keys:
+        # walk the dataclasses, not the dict: to_dict leaves out fields that hold their default
+        names = {f.name for f in dataclasses.fields(target)} if dataclasses.is_dataclass(target) else set()
+        if key not in names:
             raise ConfigError(f"{path}: unknown key")
-        node = node[key]
-    if not isinstance(node, dict) or keys[-1] not in node:
-        raise ConfigError(f"{path}: unknown key")
+        if key != keys[-1]:
+            node, target = node[key], getattr(target, key)
     node[keys[-1]] = value
     return from_dict(type(obj), data)
 

@@ -30,8 +30,8 @@ from synth.sensors import fsr
 
 __all__ = ["DEFAULT_THRESHOLD", "OnePressCheck"]
 
-#: residual above which a frame is flagged: the 99th percentile on normal single presses
-DEFAULT_THRESHOLD = 0.12
+#: residual above which a frame is flagged (see the module docstring for the rates it gives)
+DEFAULT_THRESHOLD = 0.05
 
 
 class OnePressCheck:

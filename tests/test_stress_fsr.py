@@ -217,7 +217,7 @@ def readings(batch: st.SearchStrategy[int] | None = None) -> st.SearchStrategy[n
 
 def check_estimate(method: str, x: np.ndarray, out: np.ndarray) -> None:
     """The fsr prediction format, with the classical estimators' flags (see triangulation's docs)."""
-    assert out.shape == (len(x), 5) and out.dtype == np.float32 and np.isfinite(out).all()
+    assert out.shape == (len(x), 6) and out.dtype == np.float32 and np.isfinite(out).all()
     assert ((out[:, 3:] >= 0) & (out[:, 3:] <= 1)).all()
     if method not in CLASSICAL:
         return
@@ -272,7 +272,7 @@ def test_large_batches_answer_row_by_row(method: str) -> None:
     assert np.allclose(est.predict(x[::-1])[::-1], out, rtol=0, atol=tol)
     for i in (0, 1, n // 2, n - 1):
         assert np.allclose(est.predict(x[i : i + 1]), out[i : i + 1], rtol=0, atol=tol)
-    assert est.predict(x[:0]).shape == (0, 5)
+    assert est.predict(x[:0]).shape == (0, 6)
 
 
 def code_for_load(load: float) -> float:

@@ -124,3 +124,65 @@ def test_a_family_replaces_stimuli_but_merges_the_sensor() -> None:
     assert [k.kind for k in scene.sensor.stimuli.kinds] == ["punch"]
     assert scene.sensor.stimuli.margin_mm == 0.0  # not strips16's 2 mm: the stimuli table is replaced
     assert scene.name == "t/f"
+
+
+TINY_SUITE = """
+name = "tiny"
+base = "strips5"
+frames = 30
+
+[[families]]
+name = "rings"
+[families.strips.stimuli]
+count = [1, 1]
+margin_mm = 3.0
+[[families.strips.stimuli.kinds]]
+kind = "ring"
+force_n = [1.0, 3.0]
+radius_mm = [2.0, 3.0]
+
+[[families]]
+name = "pairs"
+[families.strips.stimuli]
+count = [2, 2]
+[[families.strips.stimuli.kinds]]
+kind = "sphere"
+force_n = [1.0, 3.0]
+"""
+
+
+def test_eval_and_bench_report_every_family(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import json
+
+    from tactile_learn.cli import main
+
+    (workdir / "tiny.toml").write_text(TINY_SUITE)
+    argv = ["eval", "--task", "strips", "--suite", "tiny.toml", "--method", "intersection", "--json", "e.json"]
+    assert main(argv) == 0
+    result = json.loads((workdir / "e.json").read_text())
+    assert set(result["families"]) == {"rings", "pairs"}
+    assert result["n_frames_per_family"] == {"rings": 30, "pairs": 30}
+    rings, pairs = result["families"]["rings"]["pearson_r_mean"], result["families"]["pairs"]["pearson_r_mean"]
+    assert result["mean_over_families"]["pearson_r_mean"] == pytest.approx((rings + pairs) / 2)
+    assert "residual_rel_median" in result["families"]["rings"]
+    # the same seed gives the same numbers; another seed other frames
+    assert main([*argv[:-2], "--json", "again.json"]) == 0
+    assert json.loads((workdir / "again.json").read_text())["families"] == result["families"]
+    assert main([*argv[:-2], "--seed", "9", "--json", "other.json"]) == 0
+    assert json.loads((workdir / "other.json").read_text())["families"] != result["families"]
+    capsys.readouterr()
+    assert main(["bench", "--task", "strips", "--suite", "tiny.toml", "--quick", "--json", "b.json"]) == 0
+    table = capsys.readouterr().out
+    assert "rings" in table and "pairs" in table and "mean_over_families" in table
+    bench = json.loads((workdir / "b.json").read_text())
+    names = [m["name"] for m in bench["methods"]]
+    assert {"intersection", "projection"} <= set(names)
+    inter = bench["methods"][names.index("intersection")]
+    from tactile_learn.bench import BENCH_SEED
+
+    assert main([*argv[:-2], "--seed", str(BENCH_SEED), "--json", "same.json"]) == 0  # bench's frames
+    same = json.loads((workdir / "same.json").read_text())["families"]["rings"]["pearson_r_mean"]
+    assert inter["families"]["rings"]["pearson_r_mean"] == pytest.approx(same, rel=1e-12)
+    # errors: a suite of another task, neither --data nor --suite
+    assert main(["eval", "--task", "fsr", "--suite", "tiny.toml", "--method", "triangulation"]) == 2
+    assert main(["eval", "--task", "strips", "--method", "intersection"]) == 2

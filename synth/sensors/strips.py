@@ -485,7 +485,11 @@ class StripSimulator:
         st = self.config.stimuli
         g = self.config.geometry
         k = self.k_max
-        count = rng.integers(st.count[0], st.count[1] + 1, size=n)
+        if st.count_weights:
+            weights = np.asarray(st.count_weights, dtype=np.float64)
+            count = st.count[0] + rng.choice(len(weights), size=n, p=weights / weights.sum())
+        else:
+            count = rng.integers(st.count[0], st.count[1] + 1, size=n)
         count[rng.random(n) < st.empty_fraction] = 0
         weights = np.array([s.weight for s in st.kinds])
         spec_index = rng.choice(len(st.kinds), size=(n, k), p=weights / weights.sum())

@@ -198,6 +198,13 @@ class StripStimuli:
     ``margin_mm`` on every side (negative: centres may fall outside the array)."""
 
     count: tuple[int, int] = param((1, 2), lo=0, hi=16, ordered=True, doc="contacts per frame, [min, max]")
+    count_weights: tuple[float, ...] = param(
+        (),
+        lo=0.0,
+        hi=1e6,
+        omit_default=True,
+        doc="relative frequency of each count from min to max (default: all equally often)",
+    )
     empty_fraction: float = param(0.0, lo=0.0, hi=1.0, doc="share of frames with no contact at all")
     margin_mm: float = param(0.0, lo=-20.0, hi=100.0, unit="mm")
     twin_fraction: float = param(
@@ -211,6 +218,12 @@ class StripStimuli:
     def __post_init__(self) -> None:
         if not self.kinds:
             raise ConfigError("stimuli.kinds: at least one stimulus kind is needed")
+        n_counts = self.count[1] - self.count[0] + 1
+        if self.count_weights and (len(self.count_weights) != n_counts or sum(self.count_weights) <= 0):
+            raise ConfigError(
+                f"stimuli.count_weights: expected {n_counts} non-negative weights (one per count from "
+                f"{self.count[0]} to {self.count[1]}) with a positive sum, got {list(self.count_weights)}"
+            )
 
 
 @dataclass(frozen=True)

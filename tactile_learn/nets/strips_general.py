@@ -51,33 +51,39 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
 class StripForward(nn.Module):
     """Cell map (kPa, (B, N, M)) -> strip loads (B, N+M): the in-graph twin of
     ``tactile_learn.strips_consistency.StripConsistency.model_loads`` (cell-constant pressure, unit
-    gains; see that module for the approximation)."""
+    gains; see that module for the approximation).
 
-    k_row: torch.Tensor
-    k_col: torch.Tensor
+    Two matrix products (few graph nodes, cheap at batch 1): the cell map to the stress on every row
+    and column segment at once, then, after the piezoresistive law, the segments' sums per strip.
+    """
+
+    stress: torch.Tensor
+    sums: torch.Tensor
 
     def __init__(self, scene: Scene) -> None:
         super().__init__()
         sensor = StripSensor(scene.sensor)
         k_row, k_col = sensor.array.cell_stress_operators()
-        self.n_rows, self.n_cols = sensor.n_rows, sensor.n_cols
-        self.register_buffer("k_row", torch.from_numpy(k_row.T.astype(np.float32).copy()))
-        self.register_buffer("k_col", torch.from_numpy(k_col.T.astype(np.float32).copy()))
+        n, m = sensor.n_rows, sensor.n_cols
+        self.n_cells = n * m
+        self.register_buffer("stress", torch.from_numpy(np.concatenate([k_row.T, k_col.T], axis=1).astype(np.float32)))
+        sums = np.zeros((2 * n * m, n + m), dtype=np.float32)
+        cells = np.arange(n * m)
+        sums[cells, cells // m] = 1.0  # row segment (i, j) belongs to row strip i
+        sums[n * m + cells, n + cells % m] = 1.0  # column segment (i, j) to column strip j
+        self.register_buffer("sums", torch.from_numpy(sums))
         self.p0 = float(scene.sensor.piezo.p0_kpa)
         self.exponent = float(scene.sensor.piezo.exponent)
 
     def _gain(self, stress: torch.Tensor) -> torch.Tensor:
-        x = stress.clamp_min(0.0) / self.p0
         if self.exponent == 1.0:
-            return x / (1.0 + x)  # 1 - (1 + x)^-1, without the cancellation
-        return 1.0 - torch.pow(1.0 + x, -self.exponent)
+            return stress / (stress + self.p0)  # 1 - (1 + s/p0)^-1, without the cancellation
+        return 1.0 - torch.pow(1.0 + stress / self.p0, -self.exponent)
 
     def forward(self, maps: torch.Tensor) -> torch.Tensor:
-        b = maps.shape[0]
-        x = maps.reshape(b, self.n_rows * self.n_cols).clamp_min(0.0)
-        row = self._gain(x @ self.k_row).reshape(b, self.n_rows, self.n_cols)
-        col = self._gain(x @ self.k_col).reshape(b, self.n_rows, self.n_cols)
-        return torch.cat([row.sum(dim=2), col.sum(dim=1)], dim=1)
+        x = maps.reshape(maps.shape[0], self.n_cells).clamp_min(0.0)
+        # the truncated kernel can leave -1e-6-sized stress far from any load: clamped
+        return self._gain((x @ self.stress).clamp_min(0.0)) @ self.sums
 
 
 class StripResidual(nn.Module):
