@@ -83,9 +83,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"| {name} ({group.replace('_', ' ')}) | {r['frames']} | {100 * r['flagged_share']:.1f} % | "
                 f"{r['r_learned_unflagged']:.3f} / {r['r_learned_flagged']:.3f} | {r['r_fallback_flagged']:.3f} |"
             )
-    print(
-        f"mean flagged: in-family {100 * summary['in_family']:.1f} %, out-of-family {100 * summary['out_of_family']:.1f} %"
-    )
+    inside, outside = 100 * summary["in_family"], 100 * summary["out_of_family"]
+    print(f"mean flagged: in-family {inside:.1f} %, out-of-family {outside:.1f} %")
     if args.json:
         from synth.io import atomic_write_json
         from tactile_learn.cli.common import json_ready

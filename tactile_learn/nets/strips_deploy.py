@@ -23,6 +23,7 @@ difference above ``tolerance`` of the output range.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import torch
 from torch import nn
@@ -34,7 +35,7 @@ from tactile_learn.nets.strips_general import GeneralStripNet, StripForward, Str
 __all__ = ["DeployedStripNet", "deploy"]
 
 
-def _block_diagonal_conv1d(a: nn.Conv1d, b: nn.Conv1d, groups_in: tuple[int, int]) -> nn.Conv1d:
+def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int]) -> nn.Conv1d:
     """One Conv1d computing ``a`` on the first ``groups_in[0]`` input channels and ``b`` on the
     next ``groups_in[1]``, outputs stacked (zeros across)."""
     ia, ib = groups_in
@@ -56,9 +57,9 @@ class _DeployedAxial(nn.Module):
     (``W + I``: one node fewer). (Channels-last matrix products instead of the 1 x 1 convolutions
     were measured slower under onnxruntime.)"""
 
-    def __init__(self, block: nn.Module) -> None:
+    def __init__(self, block: Any) -> None:
         super().__init__()
-        channels = block.own.in_channels
+        channels = int(block.own.in_channels)
         self.own = nn.Conv2d(channels, channels, 1)
         with torch.no_grad():
             self.own.weight.copy_(block.own.weight + torch.eye(channels)[:, :, None, None])
@@ -76,6 +77,8 @@ class _DeployedAxial(nn.Module):
 class DeployedStripNet(nn.Module):
     """``GeneralStripNet`` (no correction step) rearranged for export; outputs the map and its
     readings residual (``residual_rel``)."""
+
+    segments: torch.Tensor
 
     def __init__(self, net: GeneralStripNet, scene: Scene) -> None:
         super().__init__()
@@ -95,9 +98,9 @@ class DeployedStripNet(nn.Module):
         self.log_ref = math.log(net.total_ref)
         if n != m:
             raise ModelError("the deployed form covers square arrays (rows and columns share its convolutions)")
-        cross = net.crossings
-        enc = cross.row_encoder[0].out_channels
-        hidden = cross.row_proj.out_channels
+        cross: Any = net.crossings
+        enc = int(cross.row_encoder[0].out_channels)
+        hidden = int(cross.row_proj.out_channels)
         layers: list[nn.Module] = []
         for k, (ra, ca) in enumerate(zip(cross.row_encoder, cross.col_encoder, strict=True)):
             if isinstance(ra, nn.Conv1d) and isinstance(ca, nn.Conv1d):
@@ -127,7 +130,7 @@ class DeployedStripNet(nn.Module):
         with torch.no_grad():
             self.physics.weight.copy_(cross.physics_proj.weight[:, :2])
         # the context MLP's last layer writes the row half of the projection (zeros for columns)
-        ctx = net.context
+        ctx: Any = net.context
         last = ctx[4]
         widened = nn.Linear(last.in_features, 2 * hidden)
         with torch.no_grad():
@@ -137,14 +140,15 @@ class DeployedStripNet(nn.Module):
             widened.bias[:hidden] = last.bias
         self.context = nn.Sequential(ctx[0], ctx[1], ctx[2], ctx[3], widened)
         self.hidden = hidden
-        self.blocks = nn.Sequential(*[_DeployedAxial(b) for b in net.blocks])
+        self.blocks = nn.Sequential(*[_DeployedAxial(b) for b in list(net.blocks)])
         # head: exp(clip(h0)) * (p0 / n) * product + softplus(4 h1) / 4 * (pressure scale / total_ref)
         head = nn.Conv2d(hidden, 2, 1)
         slope = net.p0 / net.exponent
+        trained: Any = net.head
         with torch.no_grad():
-            head.weight.copy_(net.head.weight)
-            assert head.bias is not None and net.head.bias is not None
-            head.bias.copy_(net.head.bias)
+            head.weight.copy_(trained.weight)
+            assert head.bias is not None
+            head.bias.copy_(trained.bias)
             head.bias[0] += math.log(slope)
             head.weight[1] *= 4.0
             head.bias[1] *= 4.0
