@@ -8,13 +8,16 @@ The check pushes the estimate back through the film's forward model (``synth.sen
 load path to the discs with the nominal gain and the median tip radius, the FSR law) and compares
 the six modelled conductances with the measured ones. Because an estimate may be a little off even
 for a genuine single press (triangulation's median error is ~3 mm), the estimate is first refined
-by a few damped Gauss-Newton steps on ``(x, y, log F)`` against the readings: the residual is then
-that of the best single press near the estimate. ``residual`` is the RMS conductance misfit over
+by a few Levenberg-Marquardt steps on ``(x, y, log F)`` against the readings, from the estimate and
+from the sensors' conductance-weighted centroid: the residual is then that of the best single press
+near either. (Where only one sensor feels the press, a start on that sensor can stall a few mm from
+the truth: triangulation, which puts such presses on the sensor, gets more false flags than the
+learned model, whose estimate starts the refinement close to the truth.) ``residual`` is the RMS conductance misfit over
 the six sensors divided by the RMS measured conductance plus ``floor_us`` (part gains of +/-6 %
 and +/-2 % per press leave a few per cent on genuine presses).
 
 ``p_one_press`` is 1 where the residual is at most ``threshold`` and 0 where it is above (a flag,
-not a calibrated probability); frames without a detected contact get 1 (nothing to check). The
+not a calibrated probability); frames without a detected contact get 0 (as every column does). The
 default threshold was set on normal single presses of unseen films (1 % of them flagged, see
 ``scripts/fsr_flagging.py``, which also reports how often two presses and flat indenters are caught).
 """
@@ -37,7 +40,7 @@ DEFAULT_THRESHOLD = 0.05
 class OnePressCheck:
     """Residual of the best single round press near an estimate, and the flag (module docstring)."""
 
-    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 3, floor_us: float = 5.0):
+    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 6, floor_us: float = 5.0):
         self.scene = scene
         self.threshold = threshold
         self.steps = steps
@@ -73,26 +76,34 @@ class OnePressCheck:
         return np.asarray(np.minimum(*(self._refined_misfit(measured, s.astype(np.float64)) for s in starts)))
 
     def _refined_misfit(self, measured: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """RMS misfit after Levenberg-Marquardt steps from ``params`` (damping per frame: shrunk after
+        a step that lowers the misfit, grown after one that does not, which is then undone)."""
         step = np.array([0.05, 0.05, 0.01])  # finite-difference steps: mm, mm, log N
+        base = self.conductance(params)
+        cost = np.sum((measured - base) ** 2, axis=1)
+        damping = np.full(len(params), 1e-3)
         for _ in range(self.steps):
-            base = self.conductance(params)
             shifted = np.concatenate([params + np.eye(3)[k] * step[k] for k in range(3)])
             jac = (self.conductance(shifted).reshape(3, len(params), -1) - base[None]) / step[:, None, None]
             jac = jac.transpose(1, 2, 0)  # (B, 6, 3)
-            r = measured - base
-            # damped normal equations (Levenberg): a step never jumps far from the estimate
             jtj = jac.transpose(0, 2, 1) @ jac
-            damping = 1e-3 * np.trace(jtj, axis1=1, axis2=2)[:, None, None] + 1e-9
-            delta = np.linalg.solve(jtj + damping * np.eye(3), (jac.transpose(0, 2, 1) @ r[..., None]))[..., 0]
+            scale = np.trace(jtj, axis1=1, axis2=2)[:, None, None] + 1e-12
+            rhs = jac.transpose(0, 2, 1) @ (measured - base)[..., None]
+            delta = np.linalg.solve(jtj + damping[:, None, None] * scale * np.eye(3), rhs)[..., 0]
             candidate = params + np.clip(delta, [-5.0, -5.0, -1.0], [5.0, 5.0, 1.0])
-            better = np.sum((measured - self.conductance(candidate)) ** 2, axis=1) < np.sum(r**2, axis=1)
+            trial = self.conductance(candidate)
+            trial_cost = np.sum((measured - trial) ** 2, axis=1)
+            better = trial_cost < cost
             params = np.where(better[:, None], candidate, params)
-        misfit = np.sqrt(np.mean((measured - self.conductance(params)) ** 2, axis=1))
-        return np.asarray(misfit / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us))
+            base = np.where(better[:, None], trial, base)
+            cost = np.where(better, trial_cost, cost)
+            damping = np.where(better, damping / 3.0, damping * 5.0)
+        return np.asarray(np.sqrt(cost / measured.shape[1]) / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us))
 
     def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
-        """1 where the frame is explained by one round press (or has no contact), else 0 (B,)."""
-        out = np.ones(len(estimate), dtype=np.float32)
+        """1 where a detected contact is explained by one round press, else 0 (B,); a frame without
+        a detected contact has 0, like every other column of a no-contact estimate."""
+        out = np.zeros(len(estimate), dtype=np.float32)
         contact = estimate[:, 3] > 0.5
         if contact.any():
             out[contact] = (self.residual(readings[contact], estimate[contact]) <= self.threshold).astype(np.float32)

@@ -119,4 +119,4 @@ def test_check_residual_is_small_for_the_true_press_and_large_for_two() -> None:
     estimate = np.array([[0.0, -5.0, 8.0, 1.0, 1.0]])
     assert check.residual(both, estimate)[0] > 3 * check.threshold
     assert check.p_one_press(both, estimate)[0] == 0.0
-    assert check.p_one_press(both, np.array([[0.0, 0.0, 0.0, 0.0, 0.0]]))[0] == 1.0  # no contact: nothing to flag
+    assert check.p_one_press(both, np.array([[0.0, 0.0, 0.0, 0.0, 0.0]]))[0] == 0.0  # no contact: all zeros

@@ -345,7 +345,9 @@ def test_estimates_rotate_with_the_contact(
     est = estimator(method)
     pa, pb = est.predict(a), est.predict(b)
     assert np.allclose(pb[:, :2], pa[:, :2] @ ROT.T, rtol=0, atol=1e-3)
-    assert np.allclose(pb[:, 2:], pa[:, 2:], rtol=1e-5, atol=1e-6)
+    assert np.allclose(pb[:, 2:5], pa[:, 2:5], rtol=1e-5, atol=1e-6)
+    # (column 5, the one-press check, refines the estimate by a few steps that are not exactly
+    # rotation-equivariant: its flag is tested in test_fsr_flagging.py, not here)
 
 
 @pytest.mark.parametrize("method", CLASSICAL)

@@ -167,22 +167,16 @@ class StripNet(nn.Module):
 
 
 def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> nn.Module:
-    """The network of ``size``: architecture 2 (``strips_general``) when the statistics say so
-    (every model trained since), else this module's first architecture (models shipped before)."""
-    if stats.get("arch", 1) == 2:
-        from tactile_learn.nets.strips_general import (
-            FACTOR_SIZES,
-            MLP_SIZES,
-            FactorStripNet,
-            GeneralStripNet,
-            MlpStripNet,
-        )
+    """The network of ``size``: architecture 2 (``strips_general``, every model trained since the
+    shape library) when the statistics say so, else this module's first architecture (models
+    shipped before it). ``v1_small`` / ``v1_large`` train the first architecture on purpose (the
+    two-sphere specialist's recipe)."""
+    if size.startswith("v1_"):
+        size = size.removeprefix("v1_")
+    elif stats.get("arch", 1) == 2:
         from tactile_learn.nets.strips_general import SIZES as GENERAL_SIZES
+        from tactile_learn.nets.strips_general import GeneralStripNet
 
-        if size in FACTOR_SIZES:
-            return FactorStripNet(scene, stats, size)
-        if size in MLP_SIZES:
-            return MlpStripNet(scene, stats, size)
         if size not in GENERAL_SIZES:
             raise ValueError(f"size {size!r} is not one of {', '.join(GENERAL_SIZES)}")
         return GeneralStripNet(scene, stats, size)

@@ -13,9 +13,10 @@ col   name          meaning
 3     p_contact     probability (or 0/1 flag) that a contact is present
 4     p_inside      probability (or 0 / 0.5 / 1 flag) that the contact lies inside the four
                     triangles, where position and force are trustworthy
-5     p_one_press   1 if the readings are explained by one round press, 0 if not (two
-                    simultaneous presses, a large flat indenter, ...: position and force
-                    are then not to be trusted); see ``tactile_learn.fsr_check``
+5     p_one_press   1 if a detected contact is explained by one round press, 0 if not
+                    (two simultaneous presses, a large flat indenter, ...: position and
+                    force are then not to be trusted) or if no contact is detected; see
+                    ``tactile_learn.fsr_check``
 ====  ============  =====================================================================
 
 Columns 0-2 are meaningful only where ``p_contact > 0.5`` and ``p_one_press > 0.5``. Every method

@@ -92,8 +92,8 @@ class StripsTask(Task):
     output_key = "pressure"
     truth_keys = ("pressure",)
     primary_metric = ("pearson_r_mean", True)
-    net_sizes = ("small", "large", "small_c", "mlp", "mlp_deep", "factor")
-    default_epochs = 15  # 200k frames: ~20 min on 2 cores
+    net_sizes = ("small", "large", "corrected", "v1_small", "v1_large")
+    default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         g = scene.sensor.geometry
