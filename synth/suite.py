@@ -25,21 +25,14 @@ Family ``i`` of a suite drawn with ``seed`` is simulated with ``SeedSequence(see
 from __future__ import annotations
 
 import copy
-import sys
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from synth.errors import ConfigError
-from synth.scene import Scene, load_scene, parse_scene
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - exercised on Python 3.10 only
-    import tomli as tomllib
+from synth.scene import Scene, load_scene, parse_scene, read_toml, shipped_names
 
 __all__ = ["Family", "Suite", "available_suites", "load_suite", "parse_suite", "suite_frames"]
 
@@ -135,31 +128,12 @@ def parse_suite(data: dict[str, Any], source: str = "<suite>") -> Suite:
 
 def available_suites() -> list[str]:
     """Names of the suites shipped with the package."""
-    folder = resources.files("synth") / "suites"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return shipped_names("suites")
 
 
 def load_suite(name_or_path: str | Path) -> Suite:
     """Load a shipped suite by name (``"strips16_ood"``) or any suite TOML file by path."""
-    source = str(name_or_path)
-    path = Path(name_or_path)
-    if path.suffix == ".toml" or path.exists():
-        if not path.is_file():
-            raise ConfigError(f"suite file {source} does not exist")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"suite file {source} cannot be read: {exc}") from None
-    else:
-        shipped = resources.files("synth") / "suites" / f"{source}.toml"
-        if not shipped.is_file():
-            raise ConfigError(f"unknown suite {source!r} (shipped suites: {', '.join(available_suites())})")
-        text = shipped.read_text(encoding="utf-8")
-        source = f"{source}.toml"
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+    data, source = read_toml(name_or_path, "suites", "suite")
     return parse_suite(data, source)
 
 
