@@ -3,6 +3,7 @@ and the runtime works where torch cannot be imported."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -230,3 +231,31 @@ def test_exported_residual_matches_numpy_and_the_flag_falls_back(model: Path, da
     assert metrics["residual_rel_median"] == pytest.approx(
         float(np.median(StripConsistency(scene).residual(readings, out["pressure"])["residual_rel"])), rel=0.3
     )
+
+
+def test_fine_tuning_starts_from_the_given_weights(run: Path, data: Path) -> None:
+    """--init: the first epoch starts where the run ended (validation no worse than a fresh start's
+    first epoch), the normalisation is kept, and a mismatched size is refused."""
+    from synth.errors import ConfigError
+
+    base = load_run(run)
+    config = TrainConfig(
+        task="strips",
+        data=str(data / "train"),
+        val=str(data / "val"),
+        out=str(data / "tuned"),
+        epochs=1,
+        batch_size=64,
+        seed=6,
+        threads=1,
+        lr=1e-4,
+        init=str(run),
+    )
+    result = train(config, progress=False)
+    tuned = load_run(data / "tuned")
+    assert tuned["stats"] == base["stats"]
+    assert result["val_metrics"]["pearson_r_mean"] >= base["result"]["val_metrics"]["pearson_r_mean"] - 0.01
+    changed = [k for k in base["state_dict"] if not torch.equal(base["state_dict"][k], tuned["state_dict"][k])]
+    assert changed  # it did train
+    with pytest.raises(ConfigError, match="size"):
+        train(dataclasses.replace(config, out=str(data / "bad"), size="large"), progress=False)
