@@ -42,7 +42,8 @@ def _row(checked: CheckedStripModel, data: EvalData) -> dict[str, float]:
     return {
         "frames": len(flagged),
         "flagged_share": float(flagged.mean()),
-        "residual_median": float(np.median(out["residual_rel"])),
+        "residual_median": float(np.median(out["residual"])),
+        "balance_median": float(np.median(out["balance"])),
         "r_learned_unflagged": mean(r_learned, ~flagged),
         "r_learned_flagged": mean(r_learned, flagged),
         "r_fallback_flagged": mean(r_fallback, flagged),
@@ -68,13 +69,13 @@ def main(argv: list[str] | None = None) -> int:
     summary = {group: float(np.mean([r["flagged_share"] for r in rows.values()])) for group, rows in sets.items()}
     result = {
         "model": args.model,
-        "threshold": checked.threshold_,
+        "thresholds": checked.thresholds_,
         "seed": args.seed,
         "sets": sets,
         "mean_flagged_share": summary,
         "command": "python scripts/strips_flagging.py " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
-    print(f"threshold {checked.threshold_:.4f} (residual_rel)")
+    print(f"thresholds {checked.thresholds_}")
     print("| set | frames | flagged | r learned (unflagged / flagged) | r intersection (flagged) |")
     print("|---|---:|---:|---:|---:|")
     for group, rows in sets.items():

@@ -147,6 +147,8 @@ def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[
             continue
         for threads in (1, 2):
             variants.append((name, partial(_onnx_model, path, threads)))
+        if "thresholds" in card.get("consistency", {}):  # the checked path: flags + fallback
+            variants.append((f"{name}+check", partial(_checked_model, path)))
         weights = path.with_suffix(".pt")
         if weights.is_file() and _torch_available():
             variants.append((name, partial(_torch_model, weights, card)))
@@ -168,6 +170,12 @@ def _onnx_model(path: Path, threads: int) -> Estimator:
     from tactile_learn.runtime import OnnxEstimator
 
     return _named(OnnxEstimator(path, threads=threads), f"onnxruntime-{threads}t")
+
+
+def _checked_model(path: Path) -> Estimator:
+    from tactile_learn.strips_guard import CheckedStripModel
+
+    return _named(CheckedStripModel(path, threads=1), "onnxruntime-1t")
 
 
 def _named(est: Estimator, backend: str) -> Estimator:
@@ -284,7 +292,9 @@ def bench_suite(
         (name, partial(factory, scene)) for name, factory in task.classical_methods().items()
     ]
     # one backend per learned model: the accuracy is the same on every backend
-    entries += [(label, f) for label, f in _learned_variants(task_name, scene) if _backend_of(f) == "onnx-1"]
+    entries += [
+        (label, f) for label, f in _learned_variants(task_name, scene) if _backend_of(f) in ("onnx-1", "checked")
+    ]
     results = []
     first = next(iter(data.values()))
     for label, factory in entries:
@@ -316,6 +326,8 @@ def _prefixed(progress: Callable[[str], None] | None, prefix: str) -> Callable[[
 def _backend_of(factory: Callable[[], Estimator]) -> str:
     if isinstance(factory, partial) and factory.func is _onnx_model:
         return f"onnx-{factory.args[1]}"
+    if isinstance(factory, partial) and factory.func is _checked_model:
+        return "checked"
     return "other"
 
 

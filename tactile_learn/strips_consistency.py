@@ -15,12 +15,20 @@ one documented approximation and two simplifications:
   ``f`` of its mean stress);
 - unit strip gains (a calibrated sensor) and no electrical noise or ADC step.
 
-The residual is reported per frame as ``residual_rel``: the RMS over strips of the difference of the
-strip *loads* (``StripSensor.invert_readings``: a reading turned into the sum over its segments of
-the share of resistance that pressure removed), divided by the RMS load of the measured frame plus
-``noise_floor`` times the load noise; so it is scale-free (a strong and a weak press of one shape
-score alike), and a frame without contact does not divide by zero. ``residual_sigma`` is the RMS
-difference in units of the load noise (how many noise standard deviations are unexplained).
+The residual compares strip *loads* (``StripSensor.invert_readings``: a reading turned into the
+sum over its segments of the share of resistance that pressure removed), per frame:
+
+- ``residual_sigma``: the RMS over strips of the load difference in units of each strip's load
+  noise (how many noise standard deviations the map leaves unexplained). The flag of the general
+  model uses this one: it separates frames unlike the training data best (README);
+- ``residual_rel``: the same RMS difference divided by the RMS measured load plus ``noise_floor``
+  times the RMS load noise: scale-free (a strong and a weak press of one shape score alike), the
+  number ``eval`` reports for every method.
+
+:meth:`StripConsistency.balance` needs no map: the row strips and the column strips carry the same
+pressure, so their total loads agree up to the cover's depth difference and the piezoresistive
+nonlinearity; a mismatch (a drifted or damaged strip, another sensor) is another sign of a frame
+unlike the training data.
 """
 
 from __future__ import annotations
@@ -104,3 +112,15 @@ class StripConsistency:
             "residual_rel": rms_diff / scale,
             "residual_sigma": np.sqrt(np.mean((diff / noise) ** 2, axis=1)),
         }
+
+    def balance(self, readings: np.ndarray) -> np.ndarray:
+        """|sum of row loads - sum of column loads| over half their sum plus ``noise_floor`` times
+        the noise of a whole layer's total (B,): near 0 for any pressure on a healthy sensor."""
+        from tactile_learn.tasks import get_task
+
+        x = get_task("strips").check_inputs(readings, self.scene)
+        loads = self.sensor.invert_readings(x)
+        n = self.sensor.n_rows
+        rows, cols = loads[:, :n].sum(axis=1), loads[:, n:].sum(axis=1)
+        floor = self.noise_floor * float(np.sqrt(np.sum(self.load_noise**2)))
+        return np.asarray(np.abs(rows - cols) / (0.5 * (rows + cols) + floor))

@@ -193,44 +193,47 @@ sys.exit(code)
     assert "(3, 5, 5)" in result.stdout and '"pearson_r_mean"' in result.stdout
 
 
-def test_exported_residual_matches_numpy_and_the_flag_falls_back(model: Path, data: Path) -> None:
-    """The graph's readings residual is the numpy forward model's; frames above the card's threshold
-    are flagged and answered by the classical fallback."""
+def test_exported_checks_match_numpy_and_the_flag_falls_back(model: Path, data: Path) -> None:
+    """The graph's residual and balance are the numpy forward model's; frames above the card's
+    thresholds are flagged and answered by the classical fallback."""
     from tactile_learn.estimators.classical.intersection import IntersectionEstimator
     from tactile_learn.strips_consistency import StripConsistency
     from tactile_learn.strips_guard import CheckedStripModel
 
     card = json.loads(model.with_suffix(".json").read_text())
-    assert [o["name"] for o in card["outputs"]] == ["pressure", "residual_rel"]
-    threshold = card["consistency"]["flag_threshold"]
-    assert 0 < threshold < 1 and card["consistency"]["quantile"] == 0.99
+    assert [o["name"] for o in card["outputs"]] == ["pressure", "residual", "balance"]
+    thresholds = card["consistency"]["thresholds"]
+    assert set(thresholds) == {"residual", "balance"} and all(v > 0 for v in thresholds.values())
+    assert card["consistency"]["quantile"] == 0.99
     readings = np.load(data / "test" / "shard-00000.readings.npy")[:200]
     scene = load_scene("strips5")
     out = OnnxEstimator(model).predict_all(readings)
-    numpy_residual = StripConsistency(scene).residual(readings, out["pressure"])["residual_rel"]
-    assert np.allclose(out["residual_rel"], numpy_residual, rtol=1e-3, atol=1e-5)
-    # in-distribution frames: about 1 % flagged (the threshold is the 99th percentile of validation)
+    consistency = StripConsistency(scene)
+    numpy_residual = consistency.residual(readings, out["pressure"])["residual_sigma"]
+    assert np.allclose(out["residual"], numpy_residual, rtol=1e-3, atol=1e-3)
+    assert np.allclose(out["balance"], consistency.balance(readings), rtol=1e-3, atol=1e-5)
+    # in-distribution frames: about 2 % flagged (each threshold is a 99th percentile of validation)
     checked = CheckedStripModel(model)
     result = checked.check(readings)
-    assert result["flagged"].mean() < 0.06
-    # a threshold below every residual flags everything: the answer is then the intersection rule's
-    strict = CheckedStripModel(model, threshold=-1.0).check(readings)
+    assert result["flagged"].mean() < 0.08
+    # thresholds below every value flag everything: the answer is then the intersection rule's
+    strict = CheckedStripModel(model, thresholds={"residual": -1.0, "balance": -1.0}).check(readings)
     assert strict["flagged"].all()
     assert np.array_equal(strict["pressure"], IntersectionEstimator(scene).predict(readings))
     assert np.array_equal(strict["learned"], result["learned"])
-    # a frame the network never saw the like of: one strip reads a heavy load the others cannot explain
+    # frames this sensor cannot produce: one strip reads a heavy load no other strip confirms
     odd = readings[:50].copy()
     odd[:, 2] = scene.sensor.readout.offset_v + 1.2
-    assert checked.check(odd)["residual_rel"].mean() > result["residual_rel"].mean()
-    assert checked.check(odd)["flagged"].mean() > 0.5
-    # eval reports the flag
+    odd_check = checked.check(odd)
+    assert odd_check["residual"].mean() > result["residual"].mean()
+    assert odd_check["balance"].mean() > result["balance"].mean()
+    assert odd_check["flagged"].mean() > 0.5
+    # eval reports the flag, and the residual of every estimate
     from tactile_learn.tasks import get_task
 
     metrics = get_task("strips").evaluate(OnnxEstimator(model), get_task("strips").load_eval_data(data / "test"))
-    assert 0 <= metrics["flag"]["flagged_share"] < 0.06 and "with_fallback" in metrics["flag"]
-    assert metrics["residual_rel_median"] == pytest.approx(
-        float(np.median(StripConsistency(scene).residual(readings, out["pressure"])["residual_rel"])), rel=0.3
-    )
+    assert 0 <= metrics["flag"]["flagged_share"] < 0.08 and "with_fallback" in metrics["flag"]
+    assert metrics["residual_sigma_median"] == pytest.approx(metrics["flag"]["residual_median"], rel=0.05)
 
 
 def test_fine_tuning_starts_from_the_given_weights(run: Path, data: Path) -> None:

@@ -75,8 +75,8 @@ class _DeployedAxial(nn.Module):
 
 
 class DeployedStripNet(nn.Module):
-    """``GeneralStripNet`` (no correction step) rearranged for export; outputs the map and its
-    readings residual (``residual_rel``)."""
+    """``GeneralStripNet`` (no correction step) rearranged for export; outputs the map, its readings
+    residual and the readings' balance (``StripResidual``)."""
 
     segments: torch.Tensor
 
@@ -158,7 +158,7 @@ class DeployedStripNet(nn.Module):
         self.forward_model = StripForward(scene)
         self.residual = StripResidual(scene)
 
-    def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         n, h = self.n_rows, self.hidden
         divider = (readings * self.scale_v + self.shift_v).clamp(self.lo, self.hi)
         loads = (self.c0 - self.c1 / divider).clamp(0.0, 1.0) * self.segments
@@ -175,7 +175,7 @@ class DeployedStripNet(nn.Module):
         head = self.head(self.blocks(x))
         learned = torch.exp(head[:, 0].clamp(*self.clip)) * product + nn.functional.softplus(head[:, 1]) * self.unit
         pressure = learned * total.unsqueeze(2)
-        return pressure, self.residual(self.forward_model(pressure), loads)
+        return (pressure, *self.residual(self.forward_model(pressure), loads))
 
 
 def deploy(net: GeneralStripNet, scene: Scene, probe: torch.Tensor, tolerance: float = 1e-4) -> DeployedStripNet:
@@ -186,7 +186,8 @@ def deploy(net: GeneralStripNet, scene: Scene, probe: torch.Tensor, tolerance: f
     reference = GeneralStripNetWithResidual(net, scene).eval()
     with torch.inference_mode():
         for got, want in zip(deployed(probe), reference(probe), strict=True):
-            span = float(want.max() - want.min()) or 1.0
+            # maps in kPa: relative to their range; the dimensionless checks (O(1)): at least absolute
+            span = max(float(want.max() - want.min()), 1.0)
             if float((got - want).abs().max()) > tolerance * span:
                 raise ModelError(
                     f"the deployed network differs from the trained one by {float((got - want).abs().max()):.3g} "

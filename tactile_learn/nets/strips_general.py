@@ -89,17 +89,25 @@ class StripForward(nn.Module):
 
 
 class StripResidual(nn.Module):
-    """``residual_rel`` of ``tactile_learn.strips_consistency``: RMS load difference over the RMS
-    measured load plus ``noise_floor`` times the RMS load noise."""
+    """The in-graph checks of ``tactile_learn.strips_consistency``: ``residual_sigma`` of a map's
+    model loads against the measured loads (RMS in units of each strip's load noise), and the
+    map-free ``balance`` of the measured row and column totals."""
+
+    inverse_noise: torch.Tensor
 
     def __init__(self, scene: Scene, noise_floor: float = 3.0) -> None:
         super().__init__()
-        noise = StripSensor(scene.sensor).load_noise()
-        self.floor = float(noise_floor * np.sqrt(np.mean(noise**2)))
+        sensor = StripSensor(scene.sensor)
+        noise = sensor.load_noise()
+        self.n_rows = sensor.n_rows
+        self.register_buffer("inverse_noise", torch.from_numpy((1.0 / noise).astype(np.float32)))
+        self.floor = float(noise_floor * np.sqrt(np.sum(noise**2)))
 
-    def forward(self, model_loads: torch.Tensor, measured: torch.Tensor) -> torch.Tensor:
-        diff = (model_loads - measured).pow(2).mean(dim=1).sqrt()
-        return diff / (measured.pow(2).mean(dim=1).sqrt() + self.floor)
+    def forward(self, model_loads: torch.Tensor, measured: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        residual = ((model_loads - measured) * self.inverse_noise).pow(2).mean(dim=1).sqrt()
+        rows = measured[:, : self.n_rows].sum(dim=1)
+        cols = measured[:, self.n_rows :].sum(dim=1)
+        return residual, (rows - cols).abs() / (0.5 * (rows + cols) + self.floor)
 
 
 def _zero_conv(channels: int, out: int) -> nn.Conv2d:
@@ -223,7 +231,7 @@ class GeneralStripNet(nn.Module):
 
 
 class GeneralStripNetWithResidual(nn.Module):
-    """The exported graph: the map and its readings residual (``residual_rel``) per frame."""
+    """The exported graph: the map, its readings residual and the readings' balance per frame."""
 
     def __init__(self, net: GeneralStripNet, scene: Scene) -> None:
         super().__init__()
@@ -231,9 +239,9 @@ class GeneralStripNetWithResidual(nn.Module):
         self.forward_model = net.forward_model if net.correct else StripForward(scene)
         self.residual = StripResidual(scene)
 
-    def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         final, _, loads = self.net._outputs(readings)
-        return final, self.residual(self.forward_model(final), loads)
+        return (final, *self.residual(self.forward_model(final), loads))
 
 
 def general_stats(loads: np.ndarray, pressure: np.ndarray, load_noise: np.ndarray) -> dict[str, Any]:

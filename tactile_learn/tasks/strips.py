@@ -19,10 +19,11 @@ from tactile_learn.validation import as_batch
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["RESIDUAL_OUTPUT", "StripsTask", "frame_groups"]
+__all__ = ["CHECK_OUTPUTS", "StripsTask", "frame_groups"]
 
-#: name of the exported graph's second output: the readings residual of its map, per frame
-RESIDUAL_OUTPUT = "residual_rel"
+#: the exported graph's further outputs, per frame: the readings residual of its map (in noise
+#: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
+CHECK_OUTPUTS = ("residual", "balance")
 
 
 def _apart(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
@@ -100,24 +101,27 @@ class StripsTask(Task):
         return (g.n_rows + g.n_cols,)
 
     def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
-        """``consistency``: the flag threshold of a model with a readings residual, a high quantile
-        of its residuals on the run's validation frames (in-distribution, never trained on)."""
+        """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
+        of each on the run's validation frames (in-distribution, never trained on)."""
         from tactile_learn.runtime import OnnxEstimator
         from tactile_learn.strips_guard import THRESHOLD_QUANTILE, calibrate_threshold
 
         if not isinstance(model, OnnxEstimator) or val is None:
             return {}
-        if RESIDUAL_OUTPUT not in [o["name"] for o in model.card_["outputs"]]:
+        if not set(CHECK_OUTPUTS) <= {o["name"] for o in model.card_["outputs"]}:
             return {}
         data = self.load_eval_data(val).subset(slice(0, 20000))
-        residual = model.predict_all(data.inputs)[RESIDUAL_OUTPUT]
+        outputs = model.predict_all(data.inputs)
         return {
             "consistency": {
-                "residual": RESIDUAL_OUTPUT,
-                "definition": "tactile_learn.strips_consistency (cell-constant pressure, unit gains)",
-                "flag_threshold": calibrate_threshold(residual, THRESHOLD_QUANTILE),
+                "definition": "tactile_learn.strips_consistency: residual_sigma (cell-constant pressure, unit gains) "
+                "and balance",
+                "thresholds": {k: calibrate_threshold(outputs[k], THRESHOLD_QUANTILE) for k in CHECK_OUTPUTS},
                 "quantile": THRESHOLD_QUANTILE,
-                "calibrated_on": {"frames": len(data), "residual_median": float(np.median(residual))},
+                "calibrated_on": {
+                    "frames": len(data),
+                    **{f"{k}_median": float(np.median(outputs[k])) for k in CHECK_OUTPUTS},
+                },
                 "fallback": "intersection",
             }
         }
@@ -189,9 +193,10 @@ class StripsTask(Task):
         result = strip_map_metrics(pred, data.truth["pressure"], pitch)
         if len(data):
             # does the estimate explain the readings? (the same residual for every method)
-            residual = StripConsistency(data.scene).residual(data.inputs, pred)["residual_rel"]
-            result["residual_rel_median"] = float(np.median(residual))
-            result["residual_rel_p95"] = float(np.percentile(residual, 95))
+            residual = StripConsistency(data.scene).residual(data.inputs, pred)
+            result["residual_rel_median"] = float(np.median(residual["residual_rel"]))
+            result["residual_rel_p95"] = float(np.percentile(residual["residual_rel"], 95))
+            result["residual_sigma_median"] = float(np.median(residual["residual_sigma"]))
         if "latent_n_contacts" in data.extra and len(data):
             by_group = {}
             for group, mask in frame_groups(data.extra, pitch).items():
@@ -242,8 +247,8 @@ class StripsTask(Task):
         return build_strip_net(size, scene, stats)
 
     def export_module(self, net: torch.nn.Module, scene: Scene) -> tuple[torch.nn.Module, list[str]]:
-        """A general network (architecture 2) is exported with a second output, ``residual_rel``:
-        the readings residual of its map per frame (``tactile_learn.strips_consistency``)."""
+        """A general network (architecture 2) is exported with two more outputs per frame
+        (:data:`CHECK_OUTPUTS`): the readings residual of its map and the readings' balance."""
         import torch
 
         from synth.dataset import simulate_shard
@@ -254,10 +259,10 @@ class StripsTask(Task):
             return net, [self.output_key]
         g = scene.sensor.geometry
         if net.correct or g.n_rows != g.n_cols:
-            return GeneralStripNetWithResidual(net, scene), [self.output_key, RESIDUAL_OUTPUT]
+            return GeneralStripNetWithResidual(net, scene), [self.output_key, *CHECK_OUTPUTS]
         # the same function with fewer graph nodes (checked against the trained module on these frames)
         probe = torch.from_numpy(simulate_shard(scene, 12345, 0, 256)["readings"])
-        return deploy(net, scene, probe), [self.output_key, RESIDUAL_OUTPUT]
+        return deploy(net, scene, probe), [self.output_key, *CHECK_OUTPUTS]
 
     def train_forward(self, net: torch.nn.Module, inputs: torch.Tensor) -> Any:
         """The general network's final and intermediate maps (both supervised); else ``net(x)``."""
@@ -280,7 +285,8 @@ def _checked_model(estimator: Estimator) -> Any:
         return estimator
     if isinstance(estimator, OnnxEstimator):
         card = estimator.card_
-        if RESIDUAL_OUTPUT in [o["name"] for o in card["outputs"]] and "flag_threshold" in card.get("consistency", {}):
+        has_outputs = set(CHECK_OUTPUTS) <= {o["name"] for o in card["outputs"]}
+        if has_outputs and "thresholds" in card.get("consistency", {}):
             return CheckedStripModel(estimator)
     return None
 
@@ -297,12 +303,12 @@ def _flag_report(task: StripsTask, out: dict[str, np.ndarray], data: EvalData, c
 
     with_fallback = strip_map_metrics(out["pressure"], data.truth["pressure"], data.scene.sensor.geometry.pitch_mm)
     return {
-        "threshold": float(checked.threshold_),
+        "thresholds": dict(checked.thresholds_),
         "fallback": str(
             checked.fallback if isinstance(checked.fallback, str) or checked.fallback is None else checked.fallback.name
         ),
         "flagged_share": float(flagged.mean()) if len(flagged) else float("nan"),
-        "residual_rel_median_graph": float(np.median(out["residual_rel"])) if len(flagged) else float("nan"),
+        "residual_median": float(np.median(out["residual"])) if len(flagged) else float("nan"),
         "pearson_r_mean_unflagged": mean_r(~flagged),
         "pearson_r_mean_flagged": mean_r(flagged),
         "with_fallback": {k: with_fallback[k] for k in ("pearson_r_mean", "nrmse")},
