@@ -40,7 +40,7 @@ DEFAULT_THRESHOLD = 0.05
 class OnePressCheck:
     """Residual of the best single round press near an estimate, and the flag (module docstring)."""
 
-    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 6, floor_us: float = 5.0):
+    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 4, floor_us: float = 5.0):
         self.scene = scene
         self.threshold = threshold
         self.steps = steps
@@ -108,28 +108,38 @@ class OnePressCheck:
             base = np.where(better[:, None], trial, base)
             cost = np.where(better, trial_cost, cost)
             damping = np.where(better, damping / 3.0, damping * 5.0)
-        return np.asarray(np.sqrt(cost / measured.shape[1]) / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us))
+        return self._misfit(measured, base)
 
     def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
         """1 where a detected contact is explained by one round press, else 0 (B,); a frame without
         a detected contact has 0, like every other column of a no-contact estimate.
 
-        The estimate itself is tried first: a frame it already explains passes without refinement
-        (refining only lowers the misfit), so a good estimator pays one forward model per frame."""
+        Cheapest first (refining only lowers the misfit, so a frame that passes a stage is done):
+        the estimate as it is, then refined from the estimate, then refined from the centroid. A
+        good estimator's genuine presses mostly pass at the first stage: one forward model."""
         out = np.zeros(len(estimate), dtype=np.float32)
         contact = np.flatnonzero(estimate[:, 3] > 0.5)
         if not contact.size:
             return out
-        _, _, readout, _ = self._model
-        x, est = np.asarray(readings)[contact], estimate[contact]
-        measured = readout.conductance_us(np.asarray(x, dtype=np.float64))
-        params = np.column_stack([est[:, 0], est[:, 1], np.log(np.clip(est[:, 2], 1e-3, None))]).astype(np.float64)
-        direct = np.sqrt(np.mean((measured - self.conductance(params)) ** 2, axis=1)) / (
-            np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us
-        )
-        passed = direct <= self.threshold
-        doubt = ~passed
-        if doubt.any():
-            passed[doubt] = self.residual(x[doubt], est[doubt]) <= self.threshold
+        config, _, readout, _ = self._model
+        measured = readout.conductance_us(np.asarray(readings, dtype=np.float64)[contact])
+        est = estimate[contact]
+        log_force = np.log(np.clip(est[:, 2], 1e-3, None)).astype(np.float64)
+        start = np.column_stack([est[:, 0], est[:, 1], log_force]).astype(np.float64)
+        passed = self._misfit(measured, self.conductance(start)) <= self.threshold
+        doubt = np.flatnonzero(~passed)
+        if doubt.size:
+            passed[doubt] = self._refined_misfit(measured[doubt], start[doubt]) <= self.threshold
+        doubt = np.flatnonzero(~passed)
+        if doubt.size:
+            weights = np.maximum(measured[doubt] - config.element.leak_conductance_us, 0.0) + 1e-12
+            centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
+            second = np.column_stack([centroid, log_force[doubt]])
+            passed[doubt] = self._refined_misfit(measured[doubt], second) <= self.threshold
         out[contact] = passed.astype(np.float32)
         return out
+
+    def _misfit(self, measured: np.ndarray, model: np.ndarray) -> np.ndarray:
+        return np.asarray(
+            np.sqrt(np.mean((measured - model) ** 2, axis=1)) / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us)
+        )
