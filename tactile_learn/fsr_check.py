@@ -40,7 +40,7 @@ DEFAULT_THRESHOLD = 0.05
 class OnePressCheck:
     """Residual of the best single round press near an estimate, and the flag (module docstring)."""
 
-    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 4, floor_us: float = 5.0):
+    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 6, floor_us: float = 5.0):
         self.scene = scene
         self.threshold = threshold
         self.steps = steps

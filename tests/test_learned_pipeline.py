@@ -37,19 +37,15 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+def _config(data: Path, out: str, **overrides: object) -> TrainConfig:
+    """The tiny run's settings (3 epochs of 64-frame batches, seed 5), training into ``data/out``."""
+    settings: dict[str, object] = {"epochs": 3, "batch_size": 64, "seed": 5, "threads": 1, **overrides}
+    return TrainConfig(task="strips", data=str(data / "train"), val=str(data / "val"), out=str(data / out), **settings)  # type: ignore[arg-type]
+
+
 @pytest.fixture(scope="module")
 def run(data: Path) -> Path:
-    config = TrainConfig(
-        task="strips",
-        data=str(data / "train"),
-        val=str(data / "val"),
-        out=str(data / "run"),
-        epochs=3,
-        batch_size=64,
-        seed=5,
-        threads=1,
-    )
-    train(config, progress=False)
+    train(_config(data, "run"), progress=False)
     return data / "run"
 
 
@@ -69,17 +65,7 @@ def test_training_writes_its_artifacts_and_learns(run: Path) -> None:
 
 
 def test_training_is_reproducible_for_a_seed(run: Path, data: Path) -> None:
-    config = TrainConfig(
-        task="strips",
-        data=str(data / "train"),
-        val=str(data / "val"),
-        out=str(data / "again"),
-        epochs=3,
-        batch_size=64,
-        seed=5,
-        threads=1,
-    )
-    train(config, progress=False)
+    train(_config(data, "again"), progress=False)
     a, b = load_run(run)["state_dict"], load_run(data / "again")["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
 
@@ -242,18 +228,7 @@ def test_fine_tuning_starts_from_the_given_weights(run: Path, data: Path) -> Non
     from synth.errors import ConfigError
 
     base = load_run(run)
-    config = TrainConfig(
-        task="strips",
-        data=str(data / "train"),
-        val=str(data / "val"),
-        out=str(data / "tuned"),
-        epochs=1,
-        batch_size=64,
-        seed=6,
-        threads=1,
-        lr=1e-4,
-        init=str(run),
-    )
+    config = _config(data, "tuned", epochs=1, seed=6, lr=1e-4, init=str(run))
     result = train(config, progress=False)
     tuned = load_run(data / "tuned")
     assert tuned["stats"] == base["stats"]
