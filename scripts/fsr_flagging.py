@@ -57,10 +57,10 @@ def main(argv: list[str] | None = None) -> int:
         for name, arrays in frames.items():
             pred = est.predict(arrays["readings"])
             detected = pred[:, 3] > 0.5
-            results[method][name] = float((pred[detected, 5] <= 0.5).mean()) if detected.any() else float("nan")
+            results[method][name] = float((pred[detected, 5] < 0.5).mean()) if detected.any() else float("nan")
             if name == "two presses":
                 sel = detected & apart
-                results[method]["two presses >= 10 mm apart"] = float((pred[sel, 5] <= 0.5).mean())
+                results[method]["two presses >= 10 mm apart"] = float((pred[sel, 5] < 0.5).mean())
     kinds_shown = list(results[args.methods[0]])
     print("| method | " + " | ".join(f"flagged: {k}" for k in kinds_shown) + " |")
     print("|---|" + "---:|" * len(kinds_shown))

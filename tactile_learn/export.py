@@ -87,6 +87,7 @@ def export(
     name: str | None = None,
     test: str | Path | None = None,
     command: str | None = None,
+    calibration: str | Path | None = None,
 ) -> dict[str, Any]:
     """Export ``run`` to ``out`` (``.onnx``) plus its card; returns the card."""
     out = Path(out)
@@ -170,7 +171,8 @@ def export(
         handle.write(weights.getvalue())
     # write the card first without held-out metrics, so the runtime can load the model to measure them
     atomic_write_json(card_path(out), card)
-    extras = task.card_extras(OnnxEstimator(out), result["config"].get("val"), scene)
+    calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
+    extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
     if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames
         card.update(extras)
         atomic_write_json(card_path(out), _json_ready(card))

@@ -17,7 +17,9 @@ the six sensors divided by the RMS measured conductance plus ``floor_us`` (part 
 and +/-2 % per press leave a few per cent on genuine presses).
 
 ``p_one_press`` is 1 where the residual is at most ``threshold`` and 0 where it is above (a flag,
-not a calibrated probability); frames without a detected contact get 0 (as every column does). The
+not a calibrated probability); frames without a detected contact get 0 (as every column does), and
+contacts the estimator places outside the triangles (``p_inside <= 0.5``, where its position and
+force are extrapolations already) get 0.5: not checked. A frame is flagged where ``p_one_press < 0.5``. The
 default threshold was set on normal single presses of unseen films (1 % of them flagged, see
 ``scripts/fsr_flagging.py``, which also reports how often two presses and flat indenters are caught).
 """
@@ -118,7 +120,11 @@ class OnePressCheck:
         the estimate as it is, then refined from the estimate, then refined from the centroid. A
         good estimator's genuine presses mostly pass at the first stage: one forward model."""
         out = np.zeros(len(estimate), dtype=np.float32)
-        contact = np.flatnonzero(estimate[:, 3] > 0.5)
+        detected = estimate[:, 3] > 0.5
+        # outside the triangles (p_inside <= 0.5) position and force are extrapolations already:
+        # such frames are not checked (0.5, undecided), which also keeps the check cheap
+        out[detected & (estimate[:, 4] <= 0.5)] = 0.5
+        contact = np.flatnonzero(detected & (estimate[:, 4] > 0.5))
         if not contact.size:
             return out
         config, _, readout, _ = self._model

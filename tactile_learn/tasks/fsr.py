@@ -15,8 +15,8 @@ col   name          meaning
                     triangles, where position and force are trustworthy
 5     p_one_press   1 if a detected contact is explained by one round press, 0 if not
                     (two simultaneous presses, a large flat indenter, ...: position and
-                    force are then not to be trusted) or if no contact is detected; see
-                    ``tactile_learn.fsr_check``
+                    force are then not to be trusted) or if no contact is detected; 0.5
+                    where not checked (p_inside <= 0.5); see ``tactile_learn.fsr_check``
 ====  ============  =====================================================================
 
 Columns 0-2 are meaningful only where ``p_contact > 0.5`` and ``p_one_press > 0.5``. Every method
@@ -175,7 +175,7 @@ def fsr_metrics(pred: np.ndarray, xy_mm: np.ndarray, force_n: np.ndarray, layout
         float(np.mean((pred[detected, 4] > 0.5) == inside[detected])) if detected.any() else math.nan
     )
     # the one-press check: how often a detected press is flagged as not one round press
-    flagged = detected & (pred[:, 5] <= 0.5)
+    flagged = detected & (pred[:, 5] < 0.5)
     result["flagged_rate"] = float(flagged.sum() / detected.sum()) if detected.any() else math.nan
     result["paper_force_accuracy"] = PAPER_FORCE_ACCURACY
     result["paper_spatial_resolution_mm"] = PAPER_SPATIAL_RESOLUTION_MM
@@ -372,10 +372,10 @@ def _scene_toml(scene: Scene) -> str:
 
 
 def _flag_rates(pred: np.ndarray, data: EvalData) -> dict[str, float]:
-    """Share of detected presses flagged (``p_one_press <= 0.5``) per kind of frame: one round
+    """Share of detected presses flagged (``p_one_press < 0.5``) per kind of frame: one round
     press (false flags), two presses, a flat indenter (detections)."""
     detected = pred[:, 3] > 0.5
-    flagged = pred[:, 5] <= 0.5
+    flagged = pred[:, 5] < 0.5
     two = data.extra["latent_n_presses"] >= 2
     flat = data.extra["latent_flat"].astype(bool)
     kinds = {"one_press": ~two & ~flat, "two_presses": two & ~flat, "flat_indenter": flat}

@@ -103,6 +103,7 @@ class StripsTask(Task):
     def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
         """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
         of each on the run's validation frames (in-distribution, never trained on)."""
+        from tactile_learn.export import portable_path
         from tactile_learn.runtime import OnnxEstimator
         from tactile_learn.strips_guard import THRESHOLD_QUANTILE, calibrate_threshold
 
@@ -119,6 +120,7 @@ class StripsTask(Task):
                 "thresholds": {k: calibrate_threshold(outputs[k], THRESHOLD_QUANTILE) for k in CHECK_OUTPUTS},
                 "quantile": THRESHOLD_QUANTILE,
                 "calibrated_on": {
+                    "data": portable_path(val),
                     "frames": len(data),
                     **{f"{k}_median": float(np.median(outputs[k])) for k in CHECK_OUTPUTS},
                 },
