@@ -36,14 +36,18 @@ def param(
     unit: str = "",
     doc: str = "",
     ordered: bool = False,
+    omit_default: bool = False,
 ) -> Any:
     """Declare a validated dataclass field.
 
     ``lo``/``hi`` bound every number in the value (each element of a tuple); ``lo_open`` makes the
     lower bound strict. ``ordered`` requires a tuple to be non-decreasing (a ``[min, max]`` range).
+    ``omit_default``: :func:`to_dict` leaves the field out while it holds its default (a field added
+    later, so that the digests of scenes written before it existed do not change).
     Tuples and other immutable defaults are stored as plain defaults (dataclasses are frozen).
     """
     meta = {
+        "omit_default": omit_default,
         "lo": lo,
         "hi": hi,
         "lo_open": lo_open,
@@ -177,7 +181,11 @@ def from_dict(cls: type[T], data: Mapping[str, Any], path: str = "") -> T:
 def to_dict(obj: Any) -> Any:
     """Plain JSON/TOML-ready structure of a config object (tuples become lists)."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {f.name: to_dict(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+        return {
+            f.name: to_dict(getattr(obj, f.name))
+            for f in dataclasses.fields(obj)
+            if not (f.metadata.get("omit_default") and getattr(obj, f.name) == f.default)
+        }
     if isinstance(obj, (list, tuple)):
         return [to_dict(v) for v in obj]
     return obj
@@ -187,13 +195,15 @@ def replace(obj: T, path: str, value: Any) -> T:
     """Return a copy of the config ``obj`` with the dotted ``path`` set to ``value``, validated."""
     data = to_dict(obj)
     node = data
+    target: Any = obj
     keys = path.split(".")
-    for key in keys[:-1]:
-        if not isinstance(node, dict) or key not in node:
+    for key in keys:
+        # walk the dataclasses, not the dict: to_dict leaves out fields that hold their default
+        names = {f.name for f in dataclasses.fields(target)} if dataclasses.is_dataclass(target) else set()
+        if key not in names:
             raise ConfigError(f"{path}: unknown key")
-        node = node[key]
-    if not isinstance(node, dict) or keys[-1] not in node:
-        raise ConfigError(f"{path}: unknown key")
+        if key != keys[-1]:
+            node, target = node[key], getattr(target, key)
     node[keys[-1]] = value
     return from_dict(type(obj), data)
 

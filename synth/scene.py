@@ -119,34 +119,45 @@ def parse_scene(data: dict[str, Any], source: str = "<scene>") -> Scene:
     return Scene(name=name, task=task, sensor=sensor, outputs=outputs, noise=noise, description=description)
 
 
+def shipped_names(folder: str) -> list[str]:
+    """Names of the TOML files shipped in the package folder ``synth/<folder>``."""
+    files = resources.files("synth") / folder
+    return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
+
+
 def available_scenes() -> list[str]:
     """Names of the scenes shipped with the package."""
-    folder = resources.files("synth") / "scenes"
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return shipped_names("scenes")
 
 
-def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a shipped scene by name (``"strips16"``) or any scene TOML file by path."""
+def read_toml(name_or_path: str | Path, folder: str, what: str) -> tuple[dict[str, Any], str]:
+    """The parsed TOML of a file path, or of a shipped ``synth/<folder>/<name>.toml``, and its name
+    for error messages; ``what`` ("scene", "suite") names the kind in those messages."""
     text: str
     source = str(name_or_path)
     path = Path(name_or_path)
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
-            raise ConfigError(f"scene file {source} does not exist")
+            raise ConfigError(f"{what} file {source} does not exist")
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"scene file {source} cannot be read: {exc}") from None
+            raise ConfigError(f"{what} file {source} cannot be read: {exc}") from None
     else:
-        shipped = resources.files("synth") / "scenes" / f"{source}.toml"
+        shipped = resources.files("synth") / folder / f"{source}.toml"
         if not shipped.is_file():
-            raise ConfigError(f"unknown scene {source!r} (shipped scenes: {', '.join(available_scenes())})")
+            raise ConfigError(f"unknown {what} {source!r} (shipped {what}s: {', '.join(shipped_names(folder))})")
         text = shipped.read_text(encoding="utf-8")
         source = f"{source}.toml"
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text), source
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """Load a shipped scene by name (``"strips16"``) or any scene TOML file by path."""
+    data, source = read_toml(name_or_path, "scenes", "scene")
     return parse_scene(data, source)
 
 

@@ -1,4 +1,4 @@
-"""Indenters and the surface pressure they press into a soft layer.
+"""The contact-shape library: indenters and the surface pressure they press into a soft layer.
 
 Kinds (all forces in N, lengths in mm, pressures in kPa):
 
@@ -7,11 +7,22 @@ Kinds (all forces in N, lengths in mm, pressures in kPa):
 - ``punch``: rigid flat round punch of radius ``radius_mm`` (Boussinesq):
   ``p(r) = F / (2 pi a sqrt(a^2 - r^2))``; the edge singularity is clamped at ``r = 0.999 a`` (its
   integrable tail is restored by the force normalisation below);
-- ``block``: flat rectangular block ``width_mm x length_mm`` rotated by ``angle_deg``, uniform
-  pressure ``F / (w l)`` (a compliant pad; a rigid block's edge peaks are not modelled);
+- ``block``: flat rectangular block ``width_mm x length_mm`` rotated by ``angle_deg`` (its length
+  along that angle), pressure ``F / (w l)`` (a compliant pad; a rigid block's edge peaks are not
+  modelled); ``tilt`` in [-1, 1] makes it a *tilted block*, pressed a little askew: the pressure
+  varies linearly along the length, ``p ~ 1 + tilt * s / (l / 2)`` (``s`` from the centre), zero at
+  one end when ``|tilt| = 1``;
 - ``edge``: rounded line edge (cylinder of tip radius ``radius_mm``, length ``length_mm``, at
   ``angle_deg``), 2-D Hertz across the line: ``b = sqrt(4 F' R / (pi E*))``,
-  ``p = (2 F' / (pi b)) sqrt(1 - d^2/b^2)`` with ``F' = F / length``.
+  ``p = (2 F' / (pi b)) sqrt(1 - d^2/b^2)`` with ``F' = F / length``;
+- ``ring``: a flat washer, outer radius ``radius_mm``, hole ``hole_fraction * radius_mm``, uniform
+  pressure on the annulus (compliant, like ``block``);
+- ``terminal``: a ring terminal (the seed's "electrical connector lug"), a compound shape: a ring as
+  above plus a tongue ``width_mm`` wide reaching ``length_mm`` beyond the ring's rim at
+  ``angle_deg``, uniform pressure on the union;
+- ``blob``: a smooth random field, band-limited: the sum of :data:`BLOB_BUMPS` truncated Gaussian
+  bumps of width ``width_mm`` (the field's correlation length: no detail finer than that) centred
+  at random within ``radius_mm`` of the contact's centre, with random heights (``detail``).
 
 Each contact is rasterised into its own window of the fine lattice (cell centres at
 ``(k + 0.5) h``), averaged over ``ss x ss`` sub-samples per cell for the kinds with sharp outlines,
@@ -26,16 +37,34 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["KINDS", "ContactBatch", "Windows", "contact_radius_mm", "rasterize", "window_size"]
+__all__ = [
+    "BLOB_BUMPS",
+    "DETAIL",
+    "KINDS",
+    "ContactBatch",
+    "Windows",
+    "contact_radius_mm",
+    "rasterize",
+    "window_cells",
+    "window_size",
+]
 
-KINDS: tuple[str, ...] = ("sphere", "punch", "block", "edge")
+#: codes are indices into this tuple (``latent_kind``): new kinds are appended, never inserted
+KINDS: tuple[str, ...] = ("sphere", "punch", "block", "edge", "ring", "terminal", "blob")
 #: sub-samples per lattice cell and axis: sharp-edged kinds need the cell's covered fraction
-SUBSAMPLES = {"sphere": 1, "punch": 1, "block": 3, "edge": 3}
+SUBSAMPLES = {"sphere": 1, "punch": 1, "block": 3, "edge": 3, "ring": 3, "terminal": 3, "blob": 1}
+#: Gaussian bumps of a ``blob``; each takes three uniform numbers of ``detail`` (angle, radius, height)
+BLOB_BUMPS = 4
+#: uniform numbers per contact that shape a ``blob`` (other kinds ignore them)
+DETAIL = 3 * BLOB_BUMPS
+#: a blob's bumps are cut off this many widths from their centre (1.1 % of the peak: compact support)
+BLOB_CUTOFF = 3.0
 
 
 @dataclass(frozen=True)
 class ContactBatch:
-    """Contacts of one kind, flat over (frame, slot): every array has shape ``(n,)``."""
+    """Contacts of one kind, flat over (frame, slot): every array has shape ``(n,)`` (``detail``:
+    ``(n, DETAIL)``). ``hole_fraction``, ``tilt`` and ``detail`` default to zeros."""
 
     x_mm: np.ndarray
     y_mm: np.ndarray
@@ -44,9 +73,21 @@ class ContactBatch:
     width_mm: np.ndarray
     length_mm: np.ndarray
     angle_deg: np.ndarray
+    hole_fraction: np.ndarray | None = None
+    tilt: np.ndarray | None = None
+    detail: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.x_mm)
+
+    def holes(self) -> np.ndarray:
+        return np.zeros(len(self)) if self.hole_fraction is None else np.asarray(self.hole_fraction, np.float64)
+
+    def tilts(self) -> np.ndarray:
+        return np.zeros(len(self)) if self.tilt is None else np.asarray(self.tilt, np.float64)
+
+    def details(self) -> np.ndarray:
+        return np.zeros((len(self), DETAIL)) if self.detail is None else np.asarray(self.detail, np.float64)
 
 
 @dataclass(frozen=True)
@@ -87,7 +128,7 @@ def window_size(
     within the given maxima (``min_length_mm``: the shortest edge, whose Hertz strip is widest)."""
     if kind == "sphere":
         extent = 2 * float(contact_radius_mm(force_n, radius_mm, e_star_mpa))
-    elif kind == "punch":
+    elif kind in ("punch", "ring"):
         extent = 2 * radius_mm
     elif kind == "block":
         extent = float(np.hypot(width_mm, length_mm))
@@ -96,11 +137,37 @@ def window_size(
             edge_half_width_mm(np.float64(force_n), np.float64(radius_mm), np.float64(min_length_mm), e_star_mpa)
         )
         extent = float(np.hypot(length_mm, 2 * half))
+    elif kind == "terminal":
+        # the tongue may point any way from the ring's centre; its corners reach past R + length
+        extent = 2 * float(np.hypot(radius_mm + length_mm, width_mm / 2))
+    elif kind == "blob":
+        extent = 2 * (radius_mm + BLOB_CUTOFF * width_mm)
     else:
         raise ValueError(f"unknown stimulus kind {kind!r}")
     # +3: the window starts at the centre's cell minus size//2, so one cell of slack per side and one
     # for the bilinear point-load fallback
     return int(np.ceil(extent / h)) + 3
+
+
+def window_cells(kind: str, c: ContactBatch, h: float, e_star_mpa: float) -> np.ndarray:
+    """Per contact, the cells per side of a window that holds it (:func:`window_size` with the
+    contact's own parameters instead of the maxima)."""
+    if kind == "sphere":
+        extent = 2 * contact_radius_mm(c.force_n, c.radius_mm, e_star_mpa)
+    elif kind in ("punch", "ring"):
+        extent = 2 * np.asarray(c.radius_mm, np.float64)
+    elif kind == "block":
+        extent = np.hypot(c.width_mm, c.length_mm)
+    elif kind == "edge":
+        half = edge_half_width_mm(c.force_n, c.radius_mm, np.maximum(c.length_mm, 1e-12), e_star_mpa)
+        extent = np.hypot(c.length_mm, 2 * half)
+    elif kind == "terminal":
+        extent = 2 * np.hypot(c.radius_mm + c.length_mm, np.asarray(c.width_mm) / 2)
+    elif kind == "blob":
+        extent = 2 * (c.radius_mm + BLOB_CUTOFF * np.asarray(c.width_mm))
+    else:
+        raise ValueError(f"unknown stimulus kind {kind!r}")
+    return np.ceil(np.asarray(extent, np.float64) / h).astype(np.int64) + 3
 
 
 #: floor of a Hertz contact width (mm), see :func:`_shape`
@@ -126,17 +193,55 @@ def _shape(kind: str, dx: np.ndarray, dy: np.ndarray, c: ContactBatch, e_star_mp
         # clamp the integrable edge singularity; normalisation restores the total force
         gap = np.maximum(a * a - r2, (0.045 * a) ** 2)
         return np.where(inside, 1.0 / np.sqrt(gap), 0.0)
+    if kind == "blob":
+        return _blob(dx, dy, c)
+    if kind == "ring":
+        return _annulus(dx, dy, c).astype(np.float64)
     theta = np.deg2rad(c.angle_deg)[col]
     along = dx * np.cos(theta) + dy * np.sin(theta)
     across = -dx * np.sin(theta) + dy * np.cos(theta)
     if kind == "block":
-        inside = (np.abs(along) <= c.length_mm[col] / 2) & (np.abs(across) <= c.width_mm[col] / 2)
-        return inside.astype(np.float64)
+        half_length = c.length_mm[col] / 2
+        inside = (np.abs(along) <= half_length) & (np.abs(across) <= c.width_mm[col] / 2)
+        # |tilt| <= 1 (validated) keeps the linear profile non-negative; the clip guards rounding
+        profile = np.maximum(1.0 + c.tilts()[col] * along / half_length, 0.0)
+        return np.where(inside, profile, 0.0)
     if kind == "edge":
         b = np.maximum(edge_half_width_mm(c.force_n, c.radius_mm, c.length_mm, e_star_mpa), _MIN_WIDTH_MM)[col]
         profile = np.sqrt(np.maximum(1.0 - (across / b) ** 2, 0.0))
         return np.where(np.abs(along) <= c.length_mm[col] / 2, profile, 0.0)
+    if kind == "terminal":
+        outer = c.radius_mm[col]
+        outside_hole = dx * dx + dy * dy >= (c.holes()[col] * outer) ** 2
+        tongue = (along >= 0) & (along <= outer + c.length_mm[col]) & (np.abs(across) <= c.width_mm[col] / 2)
+        return (_annulus(dx, dy, c) | (tongue & outside_hole)).astype(np.float64)
     raise ValueError(f"unknown stimulus kind {kind!r}")
+
+
+def _annulus(dx: np.ndarray, dy: np.ndarray, c: ContactBatch) -> np.ndarray:
+    """Inside the ring of outer radius ``radius_mm`` and hole ``hole_fraction * radius_mm``."""
+    col = (slice(None), None, None)
+    r2 = dx * dx + dy * dy
+    outer = c.radius_mm[col]
+    return (r2 <= outer * outer) & (r2 >= (c.holes()[col] * outer) ** 2)
+
+
+def _blob(dx: np.ndarray, dy: np.ndarray, c: ContactBatch) -> np.ndarray:
+    """Sum of truncated Gaussian bumps (see the module docstring); ``detail`` places and scales them."""
+    col = (slice(None), None, None)
+    detail = c.details()
+    sigma = np.maximum(c.width_mm, _MIN_WIDTH_MM)[col]
+    floor = np.exp(-0.5 * BLOB_CUTOFF**2)  # subtracted so that each bump ends at zero, continuously
+    total = np.zeros(np.broadcast_shapes(dx.shape, dy.shape))
+    for b in range(BLOB_BUMPS):
+        angle = 2 * np.pi * detail[:, 3 * b]
+        # sqrt: centres uniform over the disc of radius_mm, not crowded at its middle
+        reach = c.radius_mm * np.sqrt(detail[:, 3 * b + 1])
+        height = 0.25 + 0.75 * detail[:, 3 * b + 2]
+        cx, cy = (reach * np.cos(angle))[col], (reach * np.sin(angle))[col]
+        bump = np.exp(-((dx - cx) ** 2 + (dy - cy) ** 2) / (2 * sigma * sigma)) - floor
+        total += height[col] * np.maximum(bump, 0.0)
+    return total
 
 
 def rasterize(kind: str, contacts: ContactBatch, h: float, size: int, e_star_mpa: float) -> Windows:

@@ -34,13 +34,14 @@ import numpy as np
 
 from synth import __version__
 from synth.dataset import generate
+from synth.errors import ConfigError
 from synth.scene import Scene, available_scenes, load_scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.methods import shipped_models
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 
-__all__ = ["ERROR_METRIC", "bench_simulator", "bench_task", "machine_info", "time_predict"]
+__all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info", "time_predict"]
 
 #: per task: (metric plotted as error, lower is better?) - the Pareto plot's y axis
 ERROR_METRIC: dict[str, tuple[str, bool]] = {
@@ -143,20 +144,39 @@ def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[
             card = read_card(path)
         except Exception:  # a broken card is reported by eval, not by the benchmark
             continue
-        if card["scene_digest"] != scene.digest:
+        if card["scene_digest"] != scene.digest and not _same_sensor(task_name, card["scene"], scene):
             continue
         for threads in (1, 2):
             variants.append((name, partial(_onnx_model, path, threads)))
+        if "thresholds" in card.get("consistency", {}):  # the checked path: flags + fallback
+            variants.append((f"{name}+check", partial(_checked_model, path)))
         weights = path.with_suffix(".pt")
         if weights.is_file() and _torch_available():
             variants.append((name, partial(_torch_model, weights, card)))
     return variants
 
 
+def _same_sensor(task_name: str, card_scene: dict[str, Any], scene: Scene) -> bool:
+    """A model trained on another scene of the same sensor (e.g. the general strip model, trained on
+    every shape) runs on ``scene`` too."""
+    from synth.scene import parse_scene
+
+    try:
+        return get_task(task_name).same_sensor(parse_scene(card_scene), scene)
+    except Exception:  # a card whose scene does not parse is reported by eval, not by the benchmark
+        return False
+
+
 def _onnx_model(path: Path, threads: int) -> Estimator:
     from tactile_learn.runtime import OnnxEstimator
 
     return _named(OnnxEstimator(path, threads=threads), f"onnxruntime-{threads}t")
+
+
+def _checked_model(path: Path) -> Estimator:
+    from tactile_learn.strips_guard import CheckedStripModel
+
+    return _named(CheckedStripModel(path, threads=1), "onnxruntime-1t")
 
 
 def _named(est: Estimator, backend: str) -> Estimator:
@@ -245,6 +265,71 @@ def bench_task(
     if reference:
         result["reference_metrics"] = task.reference_metrics(frames)
     return result
+
+
+def bench_suite(
+    task_name: str,
+    suite_name: str,
+    *,
+    n_frames: int | None = None,
+    repeats: int = 300,
+    budget_s: float = 3.0,
+    methods: list[str] | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Every method of ``task_name`` on every family of a suite (fresh frames of seed
+    :data:`BENCH_SEED`): per-family metrics, their mean over families, and the latency at batch 1
+    (on the first family's frames; the methods' run time does not depend on the shapes pressed)."""
+    from synth.suite import load_suite
+    from tactile_learn.suites import evaluate_suite, suite_eval_data
+
+    task = get_task(task_name)
+    suite = load_suite(suite_name)
+    if suite.base.task != task_name:
+        raise ConfigError(f"--suite: {suite.name!r} is a suite of {suite.base.task!r} scenes, not {task_name!r}")
+    data = suite_eval_data(suite, n_frames, BENCH_SEED)
+    scene = suite.base
+    entries: list[tuple[str, Callable[[], Estimator]]] = [
+        (name, partial(factory, scene)) for name, factory in task.classical_methods().items()
+    ]
+    # one backend per learned model: the accuracy is the same on every backend
+    entries += [
+        (label, f) for label, f in _learned_variants(task_name, scene) if _backend_of(f) in ("onnx-1", "checked")
+    ]
+    results = []
+    first = next(iter(data.values()))
+    for label, factory in entries:
+        if methods and label not in methods:
+            continue
+        est = factory()
+        report = evaluate_suite(est, data, task_name, progress=_prefixed(progress, label))
+        timing = time_predict(est.predict, task.latency_inputs(first), repeats=repeats, budget_s=budget_s)
+        results.append({"name": label, "kind": est.kind, "backend": est.backend, **report, **timing})
+    return {
+        "task": task_name,
+        "suite": suite.name,
+        "scene": scene.name,
+        "seed": BENCH_SEED,
+        "families": list(data),
+        "n_frames_per_family": {name: len(d) for name, d in data.items()},
+        "machine": machine_info(),
+        "methods": results,
+    }
+
+
+def _prefixed(progress: Callable[[str], None] | None, prefix: str) -> Callable[[str], None] | None:
+    if progress is None:
+        return None
+    report = progress
+    return lambda text: report(f"{prefix}: {text}")
+
+
+def _backend_of(factory: Callable[[], Estimator]) -> str:
+    if isinstance(factory, partial) and factory.func is _onnx_model:
+        return f"onnx-{factory.args[1]}"
+    if isinstance(factory, partial) and factory.func is _checked_model:
+        return "checked"
+    return "other"
 
 
 def ratios(task_name: str, results: list[dict[str, Any]]) -> dict[str, Any]:

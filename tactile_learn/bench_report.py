@@ -9,7 +9,7 @@ from typing import Any
 from synth.io import atomic_open
 from tactile_learn.bench import ERROR_METRIC
 
-__all__ = ["markdown", "pareto_plot"]
+__all__ = ["markdown", "pareto_plot", "suite_markdown"]
 
 #: metrics shown in the table per task (the first is the Pareto plot's error axis)
 TABLE_METRICS = {
@@ -78,6 +78,63 @@ def markdown(result: dict[str, Any]) -> str:
                 f"| {name} | {_fmt(r['error_ratio'])} | {_fmt(r['latency_ratio'])} | {_fmt(r['throughput_ratio'])} "
                 f"| {_fmt(r.get('error_ratio_best'))} | {_fmt(r.get('latency_ratio_best'))} |"
             )
+    return "\n".join(lines) + "\n"
+
+
+def suite_markdown(result: dict[str, Any]) -> str:
+    """Per-family table of a suite benchmark: the primary metric and the error metric of every
+    method side by side, the best classical method per family, and each learned method's margin."""
+    from tactile_learn.tasks import get_task
+
+    primary, higher_better = get_task(result["task"]).primary_metric
+    error, _ = ERROR_METRIC[result["task"]]
+    methods = result["methods"]
+    head = ["family", *(f"{m['name']} {primary} / {error}" for m in methods), "best classical"]
+    lines = [
+        f"**{result['task']}** on suite `{result['suite']}` (seed {result['seed']}), "
+        f"frames per family: {', '.join(str(v) for v in sorted(set(result['n_frames_per_family'].values())))}",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|---|" + "---:|" * len(methods) + "---|",
+    ]
+    classical = [m for m in methods if m["kind"] == "classical"]
+    rows = [*result["families"], "mean_over_families"]
+    for family in rows:
+
+        def metrics(m: dict[str, Any], fam: str = family) -> dict[str, Any]:
+            out: dict[str, Any] = m["mean_over_families"] if fam == "mean_over_families" else m["families"][fam]
+            return out
+
+        cells = [f"**{family}**" if family == "mean_over_families" else family]
+        cells += [f"{_fmt(metrics(m).get(primary))} / {_fmt(metrics(m).get(error))}" for m in methods]
+        if classical:
+            best = (max if higher_better else min)(classical, key=lambda m: float(metrics(m).get(primary, 0.0)))
+            cells.append(best["name"])
+        else:
+            cells.append("-")
+        lines.append("| " + " | ".join(cells) + " |")
+    if classical:
+        lines += ["", f"Margin of each learned method over the best classical method per family ({primary}):", ""]
+        for m in methods:
+            if m["kind"] != "learned":
+                continue
+            margins = {}
+            for family in result["families"]:
+                best_value = (max if higher_better else min)(float(c["families"][family][primary]) for c in classical)
+                value = float(m["families"][family][primary])
+                margins[family] = value - best_value if higher_better else best_value - value
+            worst = min(margins, key=lambda k: margins[k])
+            lines.append(
+                f"- {m['name']}: mean margin {sum(margins.values()) / len(margins):+.3f}, "
+                f"smallest {margins[worst]:+.3f} ({worst}), families beaten {sum(v > 0 for v in margins.values())}"
+                f"/{len(margins)}"
+            )
+    lines += ["", "| method | backend | p50 us (b1) | p99 us (b1) | frames/s (b1024) |", "|---|---|---:|---:|---:|"]
+    for m in methods:
+        lines.append(
+            f"| {m['name']} | {m['backend']} | {m['latency_us_p50_b1']:,.1f} | {m['latency_us_p99_b1']:,.1f} "
+            f"| {m['throughput_fps_b1024']:,.0f} |"
+        )
     return "\n".join(lines) + "\n"
 
 

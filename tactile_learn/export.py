@@ -50,8 +50,13 @@ def _probe_inputs(task_name: str, scene: Scene, n: int, seed: int = 12345) -> np
     return task.check_inputs(task.example_inputs(arrays, scene), scene)
 
 
+def _as_tuple(output: Any) -> tuple[torch.Tensor, ...]:
+    return tuple(output) if isinstance(output, (tuple, list)) else (output,)
+
+
 def parity_check(net: torch.nn.Module, onnx_path: Path, inputs: np.ndarray, threads: int = 1) -> dict[str, float]:
-    """Max abs difference between torch and onnxruntime, at batch 1 and 7, relative to the range."""
+    """Max abs difference between torch and onnxruntime, at batch 1 and 7, relative to the range
+    (the worst over the graph's outputs when it has several)."""
     import onnxruntime as ort
 
     options = ort.SessionOptions()
@@ -62,11 +67,15 @@ def parity_check(net: torch.nn.Module, onnx_path: Path, inputs: np.ndarray, thre
     for batch in (1, 7):
         x = inputs[:batch]
         with torch.inference_mode():
-            expected = net(torch.from_numpy(x)).numpy()
-        got = session.run(None, {name: x})[0]
-        span = float(expected.max() - expected.min()) or float(np.abs(expected).max()) or 1.0
-        report[f"max_abs_err_b{batch}"] = float(np.abs(got - expected).max())
-        report[f"rel_err_b{batch}"] = report[f"max_abs_err_b{batch}"] / span
+            expected_all = [e.numpy() for e in _as_tuple(net(torch.from_numpy(x)))]
+        got_all = session.run(None, {name: x})
+        worst_abs, worst_rel = 0.0, 0.0
+        for expected, got in zip(expected_all, got_all, strict=True):
+            span = float(expected.max() - expected.min()) or float(np.abs(expected).max()) or 1.0
+            err = float(np.abs(got - expected).max())
+            worst_abs, worst_rel = max(worst_abs, err), max(worst_rel, err / span)
+        report[f"max_abs_err_b{batch}"] = worst_abs
+        report[f"rel_err_b{batch}"] = worst_rel
     report["tolerance"] = PARITY_TOL
     return report
 
@@ -78,6 +87,7 @@ def export(
     name: str | None = None,
     test: str | Path | None = None,
     command: str | None = None,
+    calibration: str | Path | None = None,
 ) -> dict[str, Any]:
     """Export ``run`` to ``out`` (``.onnx``) plus its card; returns the card."""
     out = Path(out)
@@ -89,10 +99,13 @@ def export(
     net = task.build_net(saved["size"], scene, saved["stats"])
     net.load_state_dict(saved["state_dict"])
     net.eval()
+    graph, output_names = task.export_module(net, scene)
+    graph.eval()
     inputs = _probe_inputs(task.name, scene, 64)
     example = torch.from_numpy(inputs[:2])
     with torch.inference_mode():
-        out_shape = list(net(example).shape[1:])
+        out_shapes = [list(o.shape[1:]) for o in _as_tuple(graph(example))]
+    out_shape = out_shapes[0]
     metadata = {
         "task": task.name,
         "scene_digest": scene.digest,
@@ -104,8 +117,8 @@ def export(
     }
     with tempfile.TemporaryDirectory(dir=out.parent if out.parent.exists() else None) as tmp:
         tmp_model = Path(tmp) / "model.onnx"
-        to_onnx(net, example, tmp_model, task.input_key, task.output_key, metadata)
-        parity = parity_check(net, tmp_model, inputs)
+        to_onnx(graph, example, tmp_model, task.input_key, output_names, metadata)
+        parity = parity_check(graph, tmp_model, inputs)
         worst = max(parity["rel_err_b1"], parity["rel_err_b7"])
         if worst > PARITY_TOL:
             raise ModelError(
@@ -126,7 +139,10 @@ def export(
         "opset": OPSET,
         "package_version": __version__,
         "inputs": [{"name": task.input_key, "shape": ["batch", *metadata["input_shape"]], "dtype": "float32"}],
-        "outputs": [{"name": task.output_key, "shape": ["batch", *out_shape], "dtype": "float32"}],
+        "outputs": [
+            {"name": name, "shape": ["batch", *shape], "dtype": "float32"}
+            for name, shape in zip(output_names, out_shapes, strict=True)
+        ],
         "normalisation": saved["stats"],
         "network": {"size": saved["size"], "parameters": int(sum(p.numel() for p in net.parameters()))},
         "scene": scene.to_dict(),
@@ -155,6 +171,11 @@ def export(
         handle.write(weights.getvalue())
     # write the card first without held-out metrics, so the runtime can load the model to measure them
     atomic_write_json(card_path(out), card)
+    calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
+    extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
+    if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames
+        card.update(extras)
+        atomic_write_json(card_path(out), _json_ready(card))
     if test is not None:
         data = task.load_eval_data(test)
         metrics = task.evaluate(OnnxEstimator(out), data)
@@ -222,11 +243,12 @@ def to_onnx(
     example: torch.Tensor,
     path: Path,
     input_name: str,
-    output_name: str,
+    output_name: str | list[str],
     metadata: dict[str, Any],
 ) -> None:
     """Export ``net`` (eval mode) to ``path`` with the dynamo exporter: opset :data:`OPSET`, a
-    dynamic batch axis, ``metadata`` as JSON under the ONNX metadata key, no exporter stack traces."""
+    dynamic batch axis, ``metadata`` as JSON under the ONNX metadata key, no exporter stack traces.
+    ``output_name`` names the output, or each of a network returning a tuple."""
     import logging
     import warnings
 
@@ -243,7 +265,7 @@ def to_onnx(
             (example,),
             dynamo=True,
             input_names=[input_name],
-            output_names=[output_name],
+            output_names=[output_name] if isinstance(output_name, str) else list(output_name),
             dynamic_shapes=({0: batch},),
             opset_version=OPSET,
             verbose=False,

@@ -179,12 +179,32 @@ class OnnxEstimator(Estimator):
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
+        session = self.session_
+        x = self._checked(X)
+        if len(x) == 0:
+            return self._finish(x, np.zeros((0, *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32))
+        # only the first output: a graph's further outputs (e.g. a residual) are not needed for it
+        result = session.run([self.card_["outputs"][0]["name"]], {self.card_["inputs"][0]["name"]: x})[0]
+        return self._finish(x, np.asarray(result, dtype=np.float32))
+
+    def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
+        """Every output of the graph by name (the first is what :meth:`predict` returns)."""
+        session = self.session_
+        x = self._checked(X)
+        names = [o["name"] for o in self.card_["outputs"]]
+        if len(x) == 0:
+            return {o["name"]: np.zeros((0, *o["shape"][1:]), dtype=np.float32) for o in self.card_["outputs"]}
+        results = session.run(names, {self.card_["inputs"][0]["name"]: x})
+        out = {name: np.asarray(r, dtype=np.float32) for name, r in zip(names, results, strict=True)}
+        out[names[0]] = self._finish(x, out[names[0]])
+        return out
+
+    def _finish(self, x: np.ndarray, result: np.ndarray) -> np.ndarray:
         from tactile_learn.tasks import get_task
 
-        session = self.session_
-        x = get_task(self.task_name).check_inputs(X, self.scene_)
-        out_shape = self.card_["outputs"][0]["shape"][1:]
-        if len(x) == 0:
-            return np.zeros((0, *out_shape), dtype=np.float32)
-        result = session.run(None, {self.card_["inputs"][0]["name"]: x})[0]
-        return np.asarray(result, dtype=np.float32)
+        return get_task(self.task_name).finish_prediction(x, result, self.scene_)
+
+    def _checked(self, X: np.ndarray) -> np.ndarray:
+        from tactile_learn.tasks import get_task
+
+        return get_task(self.task_name).check_inputs(X, self.scene_)

@@ -39,11 +39,13 @@ class TorchEstimator(Estimator):
         try:
             if len(x) == 0:  # ask the network for its output shape with one dummy frame
                 probe = self.net(torch.zeros((1, *x.shape[1:]))).numpy()
-                return np.zeros((0, *probe.shape[1:]), dtype=np.float32)
-            parts = [
-                self.net(torch.from_numpy(x[i : i + self.batch_size])).numpy()
-                for i in range(0, len(x), self.batch_size)
-            ]
+                raw = np.zeros((0, *probe.shape[1:]), dtype=np.float32)
+            else:
+                parts = [
+                    self.net(torch.from_numpy(x[i : i + self.batch_size])).numpy()
+                    for i in range(0, len(x), self.batch_size)
+                ]
+                raw = np.concatenate(parts).astype(np.float32, copy=False)
         finally:
             self.net.train(was_training)
-        return np.concatenate(parts).astype(np.float32, copy=False)
+        return get_task(self.task_name).finish_prediction(x, raw, self.scene)

@@ -53,6 +53,7 @@ class TrainConfig:
     val_limit: int = 4000
     threads: int = 0  # 0: torch's default
     max_batches: int = 0  # per epoch; 0: the whole dataset (tests use a few)
+    init: str | None = None  # start from these weights (a run folder or a model's NAME.pt): fine-tuning
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -149,7 +150,17 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
 
     torch.manual_seed(config.seed)
     stats = task.fit_stats(train_set.arrays(list(task.train_keys), limit=task.stats_limit), scene)
+    init = _read_init(config.init, size) if config.init else None
+    if init is not None:
+        stats = dict(init["stats"])  # a fine-tuned network keeps its normalisation
     net = task.build_net(size, scene, stats)
+    if init is not None:
+        try:
+            net.load_state_dict(init["state_dict"])
+        except RuntimeError as exc:
+            raise DataError(
+                f"{config.init}: its weights do not fit this network ({str(exc).splitlines()[0]})"
+            ) from None
     optimizer = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
     if config.max_batches:
@@ -278,6 +289,17 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     atomic_write_json(out / "metrics.json", _jsonable(result))
     _loss_plot(state["history"], out / "loss.png", metric)
     return result
+
+
+def _read_init(source: str, size: str) -> dict[str, Any]:
+    """The weights and statistics of ``source`` (a finished run or a model's ``NAME.pt``)."""
+    path = Path(source)
+    saved = load_run(path) if path.is_dir() else _load_torch(path)
+    if not isinstance(saved, dict) or "state_dict" not in saved or "stats" not in saved:
+        raise DataError(f"{source}: not a finished run or a model's weights file (NAME.pt)")
+    if saved.get("size") != size:
+        raise ConfigError(f"--init: {source} holds a {saved.get('size')!r} network, not {size!r} (pass --size)")
+    return saved
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:

@@ -46,14 +46,16 @@ def as_batch(
         raise InputError(f"{name}: expected shape {expected}, got {tuple(array.shape)}{hint}")
     array = np.ascontiguousarray(array, dtype=np.float32)
     if array.size:
-        finite = np.isfinite(array)
-        if not finite.all():
-            row = int(np.argwhere(~finite)[0][0])
+        # two reductions decide whether anything is wrong (NaN propagates into min and max, inf is
+        # an extreme); the offending frame is only looked for when something is
+        low, high = float(array.min()), float(array.max())
+        if not (np.isfinite(low) and np.isfinite(high)):
+            row = int(np.argwhere(~np.isfinite(array))[0][0])
             raise InputError(f"{name}: contains NaN or inf (first in frame {row})")
-        if not allow_negative and (array < 0).any():
+        if not allow_negative and low < 0:
             row = int(np.argwhere(array < 0)[0][0])
             raise InputError(f"{name}: negative values are not valid readings (first in frame {row})")
-        if upper is not None and (array >= upper).any():
+        if upper is not None and high >= upper:
             row = int(np.argwhere(array >= upper)[0][0])
             raise InputError(f"{name}: saturated reading at or above {upper_name} ({upper:g}) in frame {row}")
     return array

@@ -44,9 +44,10 @@ def test_perfect_prediction_scores_perfectly() -> None:
     data = _simulate(2000, 1)
     contact = data["force_n"] > 0
     inside = fsr.in_triangles(data["xy_mm"].astype(np.float64), SCENE.sensor.layout)
-    pred = np.concatenate([data["xy_mm"], data["force_n"][:, None], contact[:, None], inside[:, None]], axis=1).astype(
-        np.float32
-    )
+    one_press = np.ones_like(contact)
+    pred = np.concatenate(
+        [data["xy_mm"], data["force_n"][:, None], contact[:, None], inside[:, None], one_press[:, None]], axis=1
+    ).astype(np.float32)
     m = fsr_metrics(pred, data["xy_mm"], data["force_n"], SCENE.sensor.layout)
     for suffix in ("", "_inside", "_film"):
         assert m[f"loc_err_mm_median{suffix}"] == pytest.approx(0.0, abs=1e-5)
@@ -61,12 +62,13 @@ def test_metrics_definitions() -> None:
     """force_accuracy is the paper's 1 - mean |F_est - F| / F; errors are in mm."""
     xy = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
     force = np.array([2.0, 4.0, 0.0])
-    pred = np.array([[3.0, 4.0, 3.0, 1, 1], [0.0, 1.0, 4.0, 1, 1], [9.0, 9.0, 9.0, 0.2, 0]], np.float32)
+    pred = np.array([[3.0, 4.0, 3.0, 1, 1, 1], [0.0, 1.0, 4.0, 1, 1, 0], [9.0, 9.0, 9.0, 0.2, 0, 1]], np.float32)
     m = fsr_metrics(pred, xy, force, SCENE.sensor.layout)
     assert m["loc_err_mm_median"] == pytest.approx(3.0)
     assert m["force_accuracy"] == pytest.approx(1 - (0.5 + 0.0) / 2)
     assert m["force_err_pct_median"] == pytest.approx(25.0)
     assert m["detect_accuracy"] == 1.0
+    assert m["flagged_rate"] == pytest.approx(0.5)  # one of the two detected presses is flagged
 
 
 def test_load_eval_data_from_npz_and_dataset(tmp_path: Path) -> None:

@@ -129,7 +129,8 @@ def test_degenerate_two_sensors_below_break_fall_back_to_the_vertex() -> None:
 @given(readings=hnp.arrays(np.float32, (5, 6), elements=st.floats(0, 1022, width=32)))
 def test_any_valid_reading_gives_finite_output(readings: np.ndarray) -> None:
     pred = TriangulationEstimator(SCENE).predict(readings)
-    assert pred.shape == (5, 5) and pred.dtype == np.float32
+    assert pred.shape == (5, 6) and pred.dtype == np.float32
+    assert set(np.unique(pred[:, 5])) <= {0.0, 0.5, 1.0}
     assert np.isfinite(pred).all()
     assert np.all((pred[:, 3] == 0) | (pred[:, 3] == 1))
     assert np.all(pred[:, 2] >= 0)

@@ -3,6 +3,7 @@ and the runtime works where torch cannot be imported."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -36,19 +37,15 @@ def data(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+def _config(data: Path, out: str, **overrides: object) -> TrainConfig:
+    """The tiny run's settings (3 epochs of 64-frame batches, seed 5), training into ``data/out``."""
+    settings: dict[str, object] = {"epochs": 3, "batch_size": 64, "seed": 5, "threads": 1, **overrides}
+    return TrainConfig(task="strips", data=str(data / "train"), val=str(data / "val"), out=str(data / out), **settings)  # type: ignore[arg-type]
+
+
 @pytest.fixture(scope="module")
 def run(data: Path) -> Path:
-    config = TrainConfig(
-        task="strips",
-        data=str(data / "train"),
-        val=str(data / "val"),
-        out=str(data / "run"),
-        epochs=3,
-        batch_size=64,
-        seed=5,
-        threads=1,
-    )
-    train(config, progress=False)
+    train(_config(data, "run"), progress=False)
     return data / "run"
 
 
@@ -68,17 +65,7 @@ def test_training_writes_its_artifacts_and_learns(run: Path) -> None:
 
 
 def test_training_is_reproducible_for_a_seed(run: Path, data: Path) -> None:
-    config = TrainConfig(
-        task="strips",
-        data=str(data / "train"),
-        val=str(data / "val"),
-        out=str(data / "again"),
-        epochs=3,
-        batch_size=64,
-        seed=5,
-        threads=1,
-    )
-    train(config, progress=False)
+    train(_config(data, "again"), progress=False)
     a, b = load_run(run)["state_dict"], load_run(data / "again")["state_dict"]
     assert all(torch.equal(a[k], b[k]) for k in a)
 
@@ -190,3 +177,63 @@ sys.exit(code)
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert "(3, 5, 5)" in result.stdout and '"pearson_r_mean"' in result.stdout
+
+
+def test_exported_checks_match_numpy_and_the_flag_falls_back(model: Path, data: Path) -> None:
+    """The graph's residual and balance are the numpy forward model's; frames above the card's
+    thresholds are flagged and answered by the classical fallback."""
+    from tactile_learn.estimators.classical.intersection import IntersectionEstimator
+    from tactile_learn.strips_consistency import StripConsistency
+    from tactile_learn.strips_guard import CheckedStripModel
+
+    card = json.loads(model.with_suffix(".json").read_text())
+    assert [o["name"] for o in card["outputs"]] == ["pressure", "residual", "balance"]
+    thresholds = card["consistency"]["thresholds"]
+    assert set(thresholds) == {"residual", "balance"} and all(v > 0 for v in thresholds.values())
+    assert card["consistency"]["quantile"] == 0.99
+    readings = np.load(data / "test" / "shard-00000.readings.npy")[:200]
+    scene = load_scene("strips5")
+    out = OnnxEstimator(model).predict_all(readings)
+    consistency = StripConsistency(scene)
+    numpy_residual = consistency.residual(readings, out["pressure"])["residual_sigma"]
+    assert np.allclose(out["residual"], numpy_residual, rtol=1e-3, atol=1e-3)
+    assert np.allclose(out["balance"], consistency.balance(readings), rtol=1e-3, atol=1e-5)
+    # in-distribution frames: about 2 % flagged (each threshold is a 99th percentile of validation)
+    checked = CheckedStripModel(model)
+    result = checked.check(readings)
+    assert result["flagged"].mean() < 0.08
+    # thresholds below every value flag everything: the answer is then the intersection rule's
+    strict = CheckedStripModel(model, thresholds={"residual": -1.0, "balance": -1.0}).check(readings)
+    assert strict["flagged"].all()
+    assert np.array_equal(strict["pressure"], IntersectionEstimator(scene).predict(readings))
+    assert np.array_equal(strict["learned"], result["learned"])
+    # frames this sensor cannot produce: one strip reads a heavy load no other strip confirms
+    odd = readings[:50].copy()
+    odd[:, 2] = scene.sensor.readout.offset_v + 1.2
+    odd_check = checked.check(odd)
+    assert odd_check["residual"].mean() > result["residual"].mean()
+    assert odd_check["balance"].mean() > result["balance"].mean()
+    assert odd_check["flagged"].mean() > 0.5
+    # eval reports the flag, and the residual of every estimate
+    from tactile_learn.tasks import get_task
+
+    metrics = get_task("strips").evaluate(OnnxEstimator(model), get_task("strips").load_eval_data(data / "test"))
+    assert 0 <= metrics["flag"]["flagged_share"] < 0.08 and "with_fallback" in metrics["flag"]
+    assert metrics["residual_sigma_median"] == pytest.approx(metrics["flag"]["residual_median"], rel=0.05)
+
+
+def test_fine_tuning_starts_from_the_given_weights(run: Path, data: Path) -> None:
+    """--init: the first epoch starts where the run ended (validation no worse than a fresh start's
+    first epoch), the normalisation is kept, and a mismatched size is refused."""
+    from synth.errors import ConfigError
+
+    base = load_run(run)
+    config = _config(data, "tuned", epochs=1, seed=6, lr=1e-4, init=str(run))
+    result = train(config, progress=False)
+    tuned = load_run(data / "tuned")
+    assert tuned["stats"] == base["stats"]
+    assert result["val_metrics"]["pearson_r_mean"] >= base["result"]["val_metrics"]["pearson_r_mean"] - 0.01
+    changed = [k for k in base["state_dict"] if not torch.equal(base["state_dict"][k], tuned["state_dict"][k])]
+    assert changed  # it did train
+    with pytest.raises(ConfigError, match="size"):
+        train(dataclasses.replace(config, out=str(data / "bad"), size="large"), progress=False)

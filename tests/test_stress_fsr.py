@@ -217,7 +217,7 @@ def readings(batch: st.SearchStrategy[int] | None = None) -> st.SearchStrategy[n
 
 def check_estimate(method: str, x: np.ndarray, out: np.ndarray) -> None:
     """The fsr prediction format, with the classical estimators' flags (see triangulation's docs)."""
-    assert out.shape == (len(x), 5) and out.dtype == np.float32 and np.isfinite(out).all()
+    assert out.shape == (len(x), 6) and out.dtype == np.float32 and np.isfinite(out).all()
     assert ((out[:, 3:] >= 0) & (out[:, 3:] <= 1)).all()
     if method not in CLASSICAL:
         return
@@ -272,7 +272,7 @@ def test_large_batches_answer_row_by_row(method: str) -> None:
     assert np.allclose(est.predict(x[::-1])[::-1], out, rtol=0, atol=tol)
     for i in (0, 1, n // 2, n - 1):
         assert np.allclose(est.predict(x[i : i + 1]), out[i : i + 1], rtol=0, atol=tol)
-    assert est.predict(x[:0]).shape == (0, 5)
+    assert est.predict(x[:0]).shape == (0, 6)
 
 
 def code_for_load(load: float) -> float:
@@ -345,7 +345,9 @@ def test_estimates_rotate_with_the_contact(
     est = estimator(method)
     pa, pb = est.predict(a), est.predict(b)
     assert np.allclose(pb[:, :2], pa[:, :2] @ ROT.T, rtol=0, atol=1e-3)
-    assert np.allclose(pb[:, 2:], pa[:, 2:], rtol=1e-5, atol=1e-6)
+    assert np.allclose(pb[:, 2:5], pa[:, 2:5], rtol=1e-5, atol=1e-6)
+    # (column 5, the one-press check, refines the estimate by a few steps that are not exactly
+    # rotation-equivariant: its flag is tested in test_fsr_flagging.py, not here)
 
 
 @pytest.mark.parametrize("method", CLASSICAL)

@@ -139,6 +139,7 @@ __all__ = [
     "Transfer",
     "TransferConfig",
     "film_gains",
+    "flat_sensor_loads",
     "hertz_radius_mm",
     "in_triangles",
     "make_simulator",
@@ -274,10 +275,34 @@ class StimulusConfig:
         0.5, lo=0.0, hi=1.0, doc="fraction of contacts drawn inside the four triangles (the rest: whole film)"
     )
     edge_margin_mm: float = param(1.0, lo=0.0, hi=20.0, unit="mm", doc="contacts stay this far from the film's edge")
+    second_press_fraction: float = param(
+        0.0,
+        lo=0.0,
+        hi=1.0,
+        omit_default=True,
+        doc="fraction of contact frames with a second, simultaneous round press (not what the film's "
+        "estimators assume: they should flag it)",
+    )
+    flat_fraction: float = param(
+        0.0,
+        lo=0.0,
+        hi=1.0,
+        omit_default=True,
+        doc="fraction of contact frames pressed by a large flat indenter (uniform pressure on a disc) "
+        "instead of a round tip",
+    )
+    flat_radius_mm: tuple[float, float] = param(
+        (10.0, 20.0), lo=0.5, hi=40.0, unit="mm", ordered=True, omit_default=True, doc="flat indenter radius"
+    )
 
     def __post_init__(self) -> None:
         if not self.tip_radii_mm:
             raise ConfigError("tip_radii_mm: at least one tip radius is needed")
+
+    @property
+    def unusual(self) -> bool:
+        """Draws presses the one-round-press estimators do not model (two presses, flat indenters)."""
+        return self.second_press_fraction > 0 or self.flat_fraction > 0
 
 
 @dataclass(frozen=True)
@@ -502,6 +527,28 @@ def sensor_loads(config: FsrConfig, xy_mm: np.ndarray, force_n: np.ndarray, tip_
     return make_transfer(config).per_newton(d, a) * np.maximum(force, 0.0)[:, None]
 
 
+#: points that stand for a flat indenter's disc of uniform pressure (sunflower pattern)
+FLAT_POINTS = 64
+
+
+def flat_sensor_loads(config: FsrConfig, xy_mm: np.ndarray, force_n: np.ndarray, radius_mm: np.ndarray) -> np.ndarray:
+    """Noise-free disc loads (B, 6) of flat indenters: uniform pressure on a disc of ``radius_mm``
+    around ``xy_mm``, as :data:`FLAT_POINTS` equal point loads spread evenly over the disc (the load
+    path is linear, so the loads add)."""
+    xy = np.asarray(xy_mm, dtype=np.float64).reshape(-1, 2)
+    force = np.asarray(force_n, dtype=np.float64).reshape(-1)
+    radius = np.broadcast_to(np.asarray(radius_mm, dtype=np.float64), force.shape)
+    k = np.arange(FLAT_POINTS) + 0.5
+    # sunflower: equal area per point; the golden angle keeps neighbours apart
+    rho = np.sqrt(k / FLAT_POINTS)
+    phi = k * np.pi * (3.0 - math.sqrt(5.0))
+    offsets = np.stack([rho * np.cos(phi), rho * np.sin(phi)], axis=1)  # (K, 2) on the unit disc
+    points = xy[:, None, :] + radius[:, None, None] * offsets[None]  # (B, K, 2)
+    d = np.linalg.norm(points[:, :, None, :] - sensor_positions(config.layout)[None, None], axis=-1)  # (B, K, 6)
+    per_newton = make_transfer(config).per_newton(d, np.zeros_like(d)).mean(axis=1)
+    return per_newton * np.maximum(force, 0.0)[:, None]
+
+
 # ---- stage 3: the FSR ------------------------------------------------------------------------
 
 
@@ -638,7 +685,51 @@ class FsrSimulator:
             specs["latent_force_n"] = ArraySpec((), "float32", "applied force (N)")
             specs["latent_tip_radius_mm"] = ArraySpec((), "float32", "indenter tip radius (mm); 0 if none")
             specs["latent_contact"] = ArraySpec((), "bool", "a contact is present")
+            if self.config.stimulus.unusual:
+                specs["latent_n_presses"] = ArraySpec((), "int8", "simultaneous presses (0, 1 or 2)")
+                specs["latent_flat"] = ArraySpec((), "bool", "the first press is a large flat indenter")
+                specs["latent_flat_radius_mm"] = ArraySpec((), "float32", "flat indenter radius (mm); 0 if none")
+                specs["latent_second_xy_mm"] = ArraySpec((2,), "float32", "second press centre (mm); 0 if none")
+                specs["latent_second_force_n"] = ArraySpec((), "float32", "second press force (N); 0 if none")
         return specs
+
+    def draw_unusual(self, contacts: dict[str, np.ndarray], rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """Second presses and flat indenters, drawn after everything else (scenes without them keep
+        their random stream): a second press is a fresh round press anywhere on the film."""
+        st = self.config.stimulus
+        n = len(contacts["contact"])
+        second = self.draw_contacts(n, rng)
+        has_second = contacts["contact"] & (rng.random(n) < st.second_press_fraction)
+        flat = contacts["contact"] & (rng.random(n) < st.flat_fraction)
+        radius = rng.uniform(st.flat_radius_mm[0], st.flat_radius_mm[1], size=n)
+        # a second press always presses (draw_contacts may have drawn "no contact" for it)
+        force = np.where(second["force"] > 0, second["force"], np.sqrt(np.prod(st.force_range_n)))
+        tip = np.where(second["tip"] > 0, second["tip"], float(np.median(st.tip_radii_mm)))
+        return {
+            "second": has_second,
+            "second_xy": np.where(has_second[:, None], second["xy"], 0.0),
+            "second_force": np.where(has_second, force, 0.0),
+            "second_tip": np.where(has_second, tip, 0.0),
+            "flat": flat,
+            "flat_radius": np.where(flat, radius, 0.0),
+        }
+
+    def _loads(self, contacts: dict[str, np.ndarray], unusual: dict[str, np.ndarray] | None) -> np.ndarray:
+        cfg = self.config
+        loads = sensor_loads(cfg, contacts["xy"], contacts["force"], contacts["tip"])
+        if unusual is None:
+            return loads
+        flat = unusual["flat"]
+        if flat.any():
+            loads[flat] = flat_sensor_loads(
+                cfg, contacts["xy"][flat], contacts["force"][flat], unusual["flat_radius"][flat]
+            )
+        second = unusual["second"]
+        if second.any():
+            loads[second] += sensor_loads(
+                cfg, unusual["second_xy"][second], unusual["second_force"][second], unusual["second_tip"][second]
+            )
+        return loads
 
     # -- stimulus
     def draw_contacts(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -683,11 +774,12 @@ class FsrSimulator:
         film_id, gain = self.draw_films(n, rng)
         z_rep = _unit_draw(rng, (n, N_SENSORS), cfg.film.distribution)
         z_adc = rng.standard_normal((n, N_SENSORS))  # drawn always: the stream does not depend on noise
+        unusual = self.draw_unusual(contacts, rng) if cfg.stimulus.unusual else None
         press_gain = gain * (1.0 + cfg.film.repeatability * z_rep) if self.noise else gain
         out: dict[str, np.ndarray] = {}
         need_load = any(o in self.outputs for o in ("readings", "sensor_force"))
         if need_load:
-            loads = sensor_loads(cfg, contacts["xy"], contacts["force"], contacts["tip"])
+            loads = self._loads(contacts, unusual)
             if "sensor_force" in self.outputs:
                 out["sensor_force_n"] = loads.astype(np.float32)
             if "readings" in self.outputs:
@@ -705,6 +797,12 @@ class FsrSimulator:
             out["latent_force_n"] = contacts["force"].astype(np.float32)
             out["latent_tip_radius_mm"] = contacts["tip"].astype(np.float32)
             out["latent_contact"] = contacts["contact"].astype(np.bool_)
+            if unusual is not None:
+                out["latent_n_presses"] = (contacts["contact"].astype(np.int8) + unusual["second"]).astype(np.int8)
+                out["latent_flat"] = unusual["flat"]
+                out["latent_flat_radius_mm"] = unusual["flat_radius"].astype(np.float32)
+                out["latent_second_xy_mm"] = unusual["second_xy"].astype(np.float32)
+                out["latent_second_force_n"] = unusual["second_force"].astype(np.float32)
         return out
 
     # -- physics API for tests and estimators

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -31,9 +32,9 @@ from synth.errors import InputError
 from synth.mechanics import patch_operator, separable_kernel
 from synth.scene import Scene
 from synth.sensors.base import ArraySpec
+from synth.sensors.strips_config import DRAWN_PARAMS, StripsConfig, draw_except
 from synth.sensors.strips_config import StripReadout as ReadoutConfig
-from synth.sensors.strips_config import StripsConfig
-from synth.stimuli import KINDS, ContactBatch, Windows, rasterize, window_size
+from synth.stimuli import DETAIL, KINDS, ContactBatch, Windows, rasterize, window_cells, window_size
 
 __all__ = [
     "CONFIG_CLASS",
@@ -57,6 +58,13 @@ OUTPUTS: dict[str, str] = {
     "latent": "contact list, strip gains and noise-free readings of every frame",
 }
 DEFAULT_OUTPUTS = ("readings", "pressure", "latent")
+
+
+#: kinds of the shape library beyond the seed's four (see ``StripSimulator.shaped``)
+SHAPED_KINDS = ("ring", "terminal", "blob")
+#: window sizes (lattice cells per side) that contacts are grouped into, each kind capped at its own
+#: largest window: few sizes (each caches its operator tables), none much larger than needed
+WINDOW_LADDER = (12, 16, 22, 30, 40, 54, 72, 96)
 
 
 def _band_weights(n: int, cells: int, h: float, pitch: float, width: float) -> np.ndarray:
@@ -409,8 +417,10 @@ class StripSimulator:
         self.k_max = self.config.stimuli.count[1]
         h = g.pitch_mm / g.samples_per_pitch
         e_star = self.config.layers.e_star_mpa
-        self.window = {
-            spec.kind: window_size(
+        # one window size per kind, large enough for every entry of that kind
+        self.window: dict[str, int] = {}
+        for spec in self.config.stimuli.kinds:
+            size = window_size(
                 spec.kind,
                 h,
                 e_star,
@@ -420,8 +430,10 @@ class StripSimulator:
                 length_mm=spec.length_mm[1],
                 min_length_mm=spec.length_mm[0],
             )
-            for spec in self.config.stimuli.kinds
-        }
+            self.window[spec.kind] = max(size, self.window.get(spec.kind, 0))
+        # scenes that use only the first four kinds, untilted, draw (and store) exactly what they did
+        # before the shape library grew: their datasets stay identical bit for bit
+        self.shaped = any(s.kind in SHAPED_KINDS or s.tilt != (0.0, 0.0) for s in self.config.stimuli.kinds)
         margin = self.config.stimuli.margin_mm
         reach = max(0.0, -margin) / h  # centres may lie this many cells outside the array
         self.pad = int(np.ceil(reach)) + max(self.window.values(), default=0)
@@ -451,6 +463,15 @@ class StripSimulator:
                 latent_length_mm=ArraySpec((k,), "float32", "block or edge length (mm)"),
                 latent_angle_deg=ArraySpec((k,), "float32", "block or edge angle (deg)"),
                 latent_twin=ArraySpec((), "bool", "contacts are identical copies (ghost-ambiguous)"),
+                **(
+                    {
+                        "latent_hole_fraction": ArraySpec((k,), "float32", "ring / terminal hole over outer radius"),
+                        "latent_tilt": ArraySpec((k,), "float32", "block pressure slope along its length"),
+                        "latent_detail": ArraySpec((k, DETAIL), "float32", "uniform numbers shaping a blob"),
+                    }
+                    if self.shaped
+                    else {}
+                ),
                 latent_strip_gain=ArraySpec((n + m,), "float32", "per-strip sensitivity gain"),
             )
             if self.scene.wants("readings"):
@@ -464,7 +485,11 @@ class StripSimulator:
         st = self.config.stimuli
         g = self.config.geometry
         k = self.k_max
-        count = rng.integers(st.count[0], st.count[1] + 1, size=n)
+        if st.count_weights:
+            weights = np.asarray(st.count_weights, dtype=np.float64)
+            count = st.count[0] + rng.choice(len(weights), size=n, p=weights / weights.sum())
+        else:
+            count = rng.integers(st.count[0], st.count[1] + 1, size=n)
         count[rng.random(n) < st.empty_fraction] = 0
         weights = np.array([s.weight for s in st.kinds])
         spec_index = rng.choice(len(st.kinds), size=(n, k), p=weights / weights.sum())
@@ -473,19 +498,21 @@ class StripSimulator:
         x = st.margin_mm + u[..., 0] * (width_x - 2 * st.margin_mm)
         y = st.margin_mm + u[..., 1] * (width_y - 2 * st.margin_mm)
 
-        def draw(attr: str, col: int) -> np.ndarray:
-            lo = np.array([getattr(s, attr)[0] for s in st.kinds])[spec_index]
-            hi = np.array([getattr(s, attr)[1] for s in st.kinds])[spec_index]
-            return lo + u[..., col] * (hi - lo)
-
-        params = {
-            "force_n": draw("force_n", 2),
-            "radius_mm": draw("radius_mm", 3),
-            "width_mm": draw("width_mm", 4),
-            "length_mm": draw("length_mm", 5),
-            "angle_deg": draw("angle_deg", 6),
-        }
         twin = (count >= 2) & (rng.random(n) < st.twin_fraction)
+        # the shape library's extra parameters are drawn after everything the first four kinds use
+        extra = rng.random((n, k, 2 + DETAIL)) if self.shaped else np.zeros((n, k, 2 + DETAIL))
+        uniforms = np.concatenate([u[..., 2:], extra[..., :2]], axis=-1)
+
+        def draw(col: int, attr: str) -> np.ndarray:
+            out = np.empty((n, k))
+            for index, spec in enumerate(st.kinds):
+                sel = spec_index == index
+                lo, hi = getattr(spec, attr)
+                out[sel] = draw_except(uniforms[..., col][sel], lo, hi, spec.holdouts(attr))
+            return out
+
+        params = {attr: draw(col, attr) for col, attr in enumerate(DRAWN_PARAMS)}
+        params["detail"] = extra[..., 2:]
         if twin.any():  # every contact copies the first one's kind and parameters
             spec_index[twin] = spec_index[twin, :1]
             for value in params.values():
@@ -520,7 +547,19 @@ class StripSimulator:
                 continue
             frame, slot = np.nonzero(sel)
             batch = ContactBatch(**{key: contacts[key][sel] for key in ContactBatch.__dataclass_fields__})
-            out.append(((frame, slot), rasterize(kind, batch, h, self.window[kind], e_star)))
+            # contacts share a window size per bucket of the ladder: a short edge is not rasterised
+            # in (nor multiplied through) the window of the longest edge the scene allows
+            needed = window_cells(kind, batch, h, e_star)
+            ladder = np.array([s for s in WINDOW_LADDER if s < self.window[kind]] + [self.window[kind]])
+            bucket = ladder[np.minimum(np.searchsorted(ladder, needed), len(ladder) - 1)]
+            for size in np.unique(bucket):
+                pick = bucket == size
+                fields: dict[str, Any] = {
+                    key: None if getattr(batch, key) is None else getattr(batch, key)[pick]
+                    for key in ContactBatch.__dataclass_fields__
+                }
+                part = ContactBatch(**fields)
+                out.append(((frame[pick], slot[pick]), rasterize(kind, part, h, int(size), e_star)))
         return out
 
     def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -568,8 +607,11 @@ class StripSimulator:
                 latent_twin=contacts["twin"],
                 latent_strip_gain=gains,
             )
-            for key in ("force_n", "radius_mm", "width_mm", "length_mm", "angle_deg"):
+            keys = DRAWN_PARAMS if self.shaped else DRAWN_PARAMS[:5]
+            for key in keys:
                 out[f"latent_{key}"] = np.where(contacts["present"], contacts[key], 0).astype(f32)
+            if self.shaped:
+                out["latent_detail"] = np.where(contacts["present"][..., None], contacts["detail"], 0).astype(f32)
             if want_readings:
                 out["readings_clean"] = clean
         return out

@@ -5,17 +5,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import numpy as np
+
 from synth.config import param
 from synth.errors import ConfigError
 
 __all__ = [
+    "DRAWN_PARAMS",
     "CoverLayer",
+    "Holdout",
     "Piezoresistive",
     "StimulusKind",
     "StripGeometry",
     "StripReadout",
     "StripStimuli",
     "StripsConfig",
+    "allowed_intervals",
+    "draw_except",
 ]
 
 
@@ -93,21 +99,97 @@ class StripReadout:
         return (2**self.adc_bits - 1) * self.lsb_v
 
 
+#: the drawn parameters of a stimulus kind, in the order of their uniform draws
+DRAWN_PARAMS = ("force_n", "radius_mm", "width_mm", "length_mm", "angle_deg", "hole_fraction", "tilt")
+
+
+@dataclass(frozen=True)
+class Holdout:
+    """An interval ``[lo, hi]`` of one parameter that is never drawn (kept for held-out tests:
+    e.g. blocks at 25-35 degrees are left out of training, and an evaluation family presses them at
+    30 degrees)."""
+
+    parameter: Literal["force_n", "radius_mm", "width_mm", "length_mm", "angle_deg", "hole_fraction", "tilt"]
+    lo: float = param(0.0, lo=-1000.0, hi=1000.0)
+    hi: float = param(0.0, lo=-1000.0, hi=1000.0)
+
+    def __post_init__(self) -> None:
+        if self.hi <= self.lo:
+            raise ConfigError(f"holdout: [{self.lo}, {self.hi}] of {self.parameter} is empty (lo must be below hi)")
+
+
 @dataclass(frozen=True)
 class StimulusKind:
-    """One kind of indenter and the ranges its parameters are drawn from (uniformly).
+    """One kind of contact shape (``synth.stimuli``) and the ranges its parameters are drawn from
+    (uniformly, minus the ``holdout`` intervals).
 
-    ``radius_mm`` is the sphere's radius, the punch's radius or the edge's tip radius; ``width_mm``
-    applies to blocks; ``length_mm`` to blocks and edges; ``angle_deg`` to blocks and edges.
+    ``radius_mm`` is the sphere's radius, the punch's radius, the edge's tip radius, the ring's and
+    the ring terminal's outer radius, or the reach of a blob's bumps; ``width_mm`` applies to blocks,
+    to a terminal's tongue and is a blob's correlation length; ``length_mm`` to blocks, edges and a
+    terminal's tongue; ``angle_deg`` to blocks, edges and terminals; ``hole_fraction`` to rings and
+    terminals; ``tilt`` to blocks.
     """
 
-    kind: Literal["sphere", "punch", "block", "edge"] = "sphere"
+    kind: Literal["sphere", "punch", "block", "edge", "ring", "terminal", "blob"] = "sphere"
     weight: float = param(1.0, lo=0.0, lo_open=True, hi=1e6, doc="relative frequency among kinds")
     force_n: tuple[float, float] = param((0.5, 5.0), lo=0.0, hi=1000.0, unit="N", ordered=True)
     radius_mm: tuple[float, float] = param((3.0, 8.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
     width_mm: tuple[float, float] = param((1.0, 5.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
     length_mm: tuple[float, float] = param((2.0, 10.0), lo=0.01, hi=1000.0, unit="mm", ordered=True)
     angle_deg: tuple[float, float] = param((0.0, 180.0), lo=-360.0, hi=360.0, unit="deg", ordered=True)
+    hole_fraction: tuple[float, float] = param(
+        (0.5, 0.5),
+        lo=0.0,
+        hi=0.95,
+        ordered=True,
+        omit_default=True,
+        doc="hole radius over outer radius (rings, terminals)",
+    )
+    tilt: tuple[float, float] = param(
+        (0.0, 0.0),
+        lo=-1.0,
+        hi=1.0,
+        ordered=True,
+        omit_default=True,
+        doc="pressure slope along a block (1: zero at one end)",
+    )
+    holdout: tuple[Holdout, ...] = param((), omit_default=True, doc="intervals of parameters never drawn")
+
+    def __post_init__(self) -> None:
+        for name in DRAWN_PARAMS:
+            lo, hi = getattr(self, name)
+            if not allowed_intervals(lo, hi, self.holdouts(name)):
+                raise ConfigError(f"holdout: the held-out intervals of {name} cover its whole range [{lo}, {hi}]")
+
+    def holdouts(self, name: str) -> list[tuple[float, float]]:
+        return [(h.lo, h.hi) for h in self.holdout if h.parameter == name]
+
+
+def allowed_intervals(lo: float, hi: float, holes: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """``[lo, hi]`` minus the ``holes``, as sorted disjoint intervals (a point range stays a point)."""
+    if lo == hi:
+        return [] if any(a < lo < b for a, b in holes) else [(lo, hi)]
+    pieces = [(lo, hi)]
+    for a, b in holes:
+        pieces = [p for s, e in pieces for p in ((s, min(e, a)), (max(s, b), e)) if p[1] > p[0]]
+    return pieces
+
+
+def draw_except(u: np.ndarray, lo: float, hi: float, holes: list[tuple[float, float]]) -> np.ndarray:
+    """Map uniform ``u`` in [0, 1) to a uniform draw from ``[lo, hi]`` minus ``holes`` (inverse CDF
+    over the allowed intervals: one number per draw, so the random stream never depends on the
+    holes; without holes this is ``lo + u (hi - lo)``)."""
+    if not holes:
+        return lo + u * (hi - lo)
+    pieces = allowed_intervals(lo, hi, holes)
+    starts = np.array([s for s, _ in pieces])
+    lengths = np.array([e - s for s, e in pieces])
+    if lengths.sum() == 0:  # a point range
+        return np.full_like(u, starts[0])
+    ends = np.cumsum(lengths)
+    t = u * ends[-1]
+    k = np.minimum(np.searchsorted(ends, t, side="right"), len(pieces) - 1)
+    return starts[k] + (t - (ends[k] - lengths[k]))
 
 
 @dataclass(frozen=True)
@@ -116,6 +198,13 @@ class StripStimuli:
     ``margin_mm`` on every side (negative: centres may fall outside the array)."""
 
     count: tuple[int, int] = param((1, 2), lo=0, hi=16, ordered=True, doc="contacts per frame, [min, max]")
+    count_weights: tuple[float, ...] = param(
+        (),
+        lo=0.0,
+        hi=1e6,
+        omit_default=True,
+        doc="relative frequency of each count from min to max (default: all equally often)",
+    )
     empty_fraction: float = param(0.0, lo=0.0, hi=1.0, doc="share of frames with no contact at all")
     margin_mm: float = param(0.0, lo=-20.0, hi=100.0, unit="mm")
     twin_fraction: float = param(
@@ -129,6 +218,12 @@ class StripStimuli:
     def __post_init__(self) -> None:
         if not self.kinds:
             raise ConfigError("stimuli.kinds: at least one stimulus kind is needed")
+        n_counts = self.count[1] - self.count[0] + 1
+        if self.count_weights and (len(self.count_weights) != n_counts or sum(self.count_weights) <= 0):
+            raise ConfigError(
+                f"stimuli.count_weights: expected {n_counts} non-negative weights (one per count from "
+                f"{self.count[0]} to {self.count[1]}) with a positive sum, got {list(self.count_weights)}"
+            )
 
 
 @dataclass(frozen=True)

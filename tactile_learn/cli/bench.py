@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from synth.errors import ConfigError
 from synth.io import atomic_write_text
 from tactile_learn.cli.common import positive_int, write_json
 
@@ -16,6 +17,7 @@ EXAMPLES = """\
   tactile-learn bench --task all --quick
   tactile-learn bench --task simulator
   tactile-learn bench --task fsr --data data/fsr-test --n 5000
+  tactile-learn bench --task strips --suite strips16_ood --json results/strips_ood.json
 Learned methods are the shipped models of the task (models/*.onnx whose scene matches), run with
 onnxruntime on 1 and 2 threads and, when torch and NAME.pt are present, torch eager. The JSON schema
 is documented in tactile_learn/bench.py; a Markdown table is printed and written beside the JSON."""
@@ -33,12 +35,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default=None, help="scene (default: the task's)")
     parser.add_argument("--method", action="append", default=None, help="only these methods (repeatable)")
     parser.add_argument("--reference", action="store_true", help="add reference metrics (thermal: the oracle; slow)")
+    parser.add_argument("--suite", default=None, help="per-family results on a suite (e.g. strips16_ood)")
 
 
 def run(args: argparse.Namespace) -> int:
     from tactile_learn.bench import bench_simulator, bench_task
     from tactile_learn.bench_report import markdown, pareto_plot
 
+    if args.suite:
+        return _run_suite(args)
     tasks = ["strips", "thermal", "fsr", "capacitive", "simulator"] if args.task == "all" else [args.task]
     results: list[dict[str, Any]] = []
     for task in tasks:
@@ -67,4 +72,26 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_text(Path(args.json).with_suffix(".md"), "\n".join(markdown(r) for r in results))
     if args.plot:
         pareto_plot(results, args.plot)
+    return 0
+
+
+def _run_suite(args: argparse.Namespace) -> int:
+    from tactile_learn.bench import bench_suite
+    from tactile_learn.bench_report import suite_markdown
+
+    if args.task not in ("strips", "thermal", "fsr"):
+        raise ConfigError(f"--suite: needs one task (strips, thermal or fsr), not {args.task!r}")
+    result = bench_suite(
+        args.task,
+        args.suite,
+        n_frames=args.n,
+        repeats=100 if args.quick else 400,
+        budget_s=1.0 if args.quick else 4.0,
+        methods=args.method,
+        progress=lambda text: print(f"  measuring {text}", file=sys.stderr, flush=True),
+    )
+    print(suite_markdown(result), flush=True)
+    if args.json:
+        write_json(args.json, result)
+        atomic_write_text(Path(args.json).with_suffix(".md"), suite_markdown(result))
     return 0

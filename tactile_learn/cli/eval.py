@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from synth.dataset import MANIFEST
-from synth.errors import DataError
+from synth.errors import ConfigError, DataError
 from synth.scene import load_scene
 from tactile_learn.cli.common import dumps, positive_int, write_json
 from tactile_learn.methods import model_scene, resolve_method
@@ -19,15 +19,21 @@ EXAMPLES = """\
   tactile-learn eval --task strips --data data/strips16-test --method models/strips16.onnx --json out.json
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
+  tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
 An .npz needs the task's arrays (strips: 'readings' (B, N+M) and 'pressure' (B, N, M)); a dataset
 folder from 'generate' carries its own scene; other data is read with the model's scene (a
 classical method: the task's default) unless --scene names one. Prints and writes
-{"task", "method", "n_frames", "metrics": {...}}."""
+{"task", "method", "n_frames", "metrics": {...}}. With --suite (families of shapes, synth/suites/),
+fresh frames of every family are simulated (--n per family, --seed) and the metrics are reported per
+family and as their mean over families: {"suite", "families": {...}, "mean_over_families": {...}}."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
-    parser.add_argument("--data", required=True, help="dataset folder, .npz file, or recordings folder")
+    parser.add_argument("--data", default=None, help="dataset folder, .npz file, or recordings folder")
+    parser.add_argument("--suite", default=None, help="instead of --data: a suite of families (e.g. strips16_ood)")
+    parser.add_argument("--n", type=positive_int, default=None, help="with --suite: frames per family")
+    parser.add_argument("--seed", type=int, default=None, help="with --suite: the frames' seed (default fixed)")
     parser.add_argument("--method", required=True, help="classical method name, shipped model name, or MODEL.onnx")
     parser.add_argument(
         "--scene", default=None, help="scene of the data (default: the dataset's, else the model's, else the task's)"
@@ -42,6 +48,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if (args.data is None) == (args.suite is None):
+        raise ConfigError("give either --data or --suite")
+    if args.suite is not None:
+        return _run_suite(args)
     task = get_task(args.task)
     scene = load_scene(args.scene) if args.scene else None
     if scene is None and not (Path(args.data) / MANIFEST).is_file():
@@ -71,6 +81,37 @@ def run(args: argparse.Namespace) -> int:
     if args.summary:
         scalars = [f"{k} {v:.4g}" for k, v in metrics.items() if isinstance(v, float) and not k.startswith("n_")]
         print(f"{result['method']:>22s} on {args.data} ({len(data)} frames): " + ", ".join(scalars[:5]))
+    else:
+        print(dumps(result))
+    return 0
+
+
+def _run_suite(args: argparse.Namespace) -> int:
+    from synth.suite import load_suite
+    from tactile_learn.suites import SUITE_SEED, evaluate_suite, suite_eval_data
+
+    suite = load_suite(args.suite)
+    if suite.base.task != args.task:
+        raise ConfigError(f"--suite: {suite.name!r} is a suite of {suite.base.task!r} scenes, not {args.task!r}")
+    seed = SUITE_SEED if args.seed is None else args.seed
+    data = suite_eval_data(suite, args.n, seed)
+    estimator = resolve_method(args.task, args.method, suite.base, threads=args.threads)
+    report = evaluate_suite(estimator, data, args.task)
+    result = {
+        "task": args.task,
+        "method": estimator.name or args.method,
+        "suite": suite.name,
+        "seed": seed,
+        "n_frames_per_family": {name: len(d) for name, d in data.items()},
+        **report,
+    }
+    if args.json:
+        write_json(args.json, result)
+    if args.summary:
+        metric = get_task(args.task).primary_metric[0]
+        for name, metrics in report["families"].items():
+            print(f"{result['method']:>22s} {name:>16s}: {metric} {metrics.get(metric, float('nan')):.4g}")
+        print(f"{result['method']:>22s} {'mean':>16s}: {metric} {report['mean_over_families'].get(metric):.4g}")
     else:
         print(dumps(result))
     return 0

@@ -19,12 +19,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output .onnx path (the card goes beside it)")
     parser.add_argument("--test", default=None, help="held-out dataset to measure the card's metrics on")
     parser.add_argument("--name", default=None, help="model name in the card (default: the file's stem)")
+    parser.add_argument(
+        "--calibration",
+        default=None,
+        help="frames that calibrate card entries such as the strips flag thresholds (default: run validation set)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     from tactile_learn.export import export
 
-    card = export(args.run, args.out, name=args.name, test=args.test)
+    card = export(args.run, args.out, name=args.name, test=args.test, calibration=args.calibration)
     summary = {
         "model": args.out,
         "bytes": card["model_bytes"],

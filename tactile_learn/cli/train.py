@@ -14,6 +14,7 @@ EXAMPLES = """\
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small --resume
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
+  tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
 Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metrics.json and RUN/loss.png."""
 
 
@@ -32,6 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=non_negative_int, default=0, help="torch threads (default: all cores)")
     parser.add_argument("--max-batches", type=non_negative_int, default=0, help="cap batches per epoch (0: all)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    parser.add_argument(
+        "--init", default=None, help="start from the weights of a finished run (RUN) or a model's NAME.pt (fine-tuning)"
+    )
     parser.add_argument("--quiet", action="store_true")
 
 
@@ -52,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
         val_limit=args.val_limit,
         threads=args.threads,
         max_batches=args.max_batches,
+        init=args.init,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet:

@@ -32,17 +32,26 @@ from synth.sensors.strips import StripSensor
 
 __all__ = ["SIZES", "StripLoads", "StripNet", "build_strip_net", "input_stats", "strip_loss"]
 
+#: weight of an intermediate map's loss (see :func:`strip_loss`)
+INTERMEDIATE_WEIGHT = 0.3
 #: size -> (strip encoder channels, crossing channels, context width, mixing blocks)
 SIZES: dict[str, tuple[int, int, int, int]] = {"small": (24, 16, 256, 2), "large": (32, 32, 256, 3)}
 
 
 def input_stats(readings: np.ndarray, pressure: np.ndarray, scene: Scene) -> dict[str, Any]:
-    """Normalisation from training data: the loads' scale and the pressure's RMS (kPa)."""
+    """Normalisation from training data: the loads' scale and the pressure's RMS (kPa), and what the
+    general architecture (``strips_general``, the one new models are built with) needs."""
+    from tactile_learn.nets.strips_general import general_stats
+
     sensor = StripSensor(scene.sensor)
     loads = sensor.invert_readings(readings.astype(np.float64))
     load_scale = float(np.sqrt(np.mean(loads**2)) + 1e-6)
     pressure_scale = float(np.sqrt(np.mean(pressure.astype(np.float64) ** 2)) + 1e-6)
-    return {"load_scale": load_scale, "pressure_scale_kpa": pressure_scale}
+    return {
+        "load_scale": load_scale,
+        "pressure_scale_kpa": pressure_scale,
+        **general_stats(loads, pressure, sensor.load_noise()),
+    }
 
 
 class StripLoads(nn.Module):
@@ -157,17 +166,38 @@ class StripNet(nn.Module):
         return out * self.pressure_scale
 
 
-def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> StripNet:
+def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> nn.Module:
+    """The network of ``size``: architecture 2 (``strips_general``, every model trained since the
+    shape library) when the statistics say so, else this module's first architecture (models
+    shipped before it). ``v1_small`` / ``v1_large`` train the first architecture on purpose (the
+    two-sphere specialist's recipe)."""
+    if size.startswith("v1_"):
+        size = size.removeprefix("v1_")
+    elif stats.get("arch", 1) == 2:
+        from tactile_learn.nets.strips_general import SIZES as GENERAL_SIZES
+        from tactile_learn.nets.strips_general import GeneralStripNet
+
+        if size not in GENERAL_SIZES:
+            raise ValueError(f"size {size!r} is not one of {', '.join(GENERAL_SIZES)}")
+        return GeneralStripNet(scene, stats, size)
     if size not in SIZES:
         raise ValueError(f"size {size!r} is not one of {', '.join(SIZES)}")
     return StripNet(scene, stats, size)
 
 
-def strip_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def strip_loss(pred: torch.Tensor | tuple[torch.Tensor, ...], target: torch.Tensor) -> torch.Tensor:
     """MSE in units of the pressure scale, plus (1 - Pearson r) per frame: the metric users read.
 
-    Frames with an all-zero truth contribute only their MSE (their r is undefined).
+    Frames with an all-zero truth contribute only their MSE (their r is undefined). A tuple of
+    maps (a network's final map and its intermediate ones) adds each intermediate map's loss at
+    :data:`INTERMEDIATE_WEIGHT`, so that the first estimate is itself good and the correction step
+    starts from it.
     """
+    if isinstance(pred, tuple):
+        total = strip_loss(pred[0], target)
+        for intermediate in pred[1:]:
+            total = total + INTERMEDIATE_WEIGHT * strip_loss(intermediate, target)
+        return total
     scale = target.pow(2).mean().sqrt().clamp_min(1e-6)
     mse = ((pred - target) / scale).pow(2).mean()
     p = pred.flatten(1) - pred.flatten(1).mean(dim=1, keepdim=True)

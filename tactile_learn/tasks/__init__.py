@@ -20,11 +20,17 @@ _TASKS: dict[str, str] = {
 TASK_NAMES: tuple[str, ...] = tuple(_TASKS)
 
 
+_INSTANCES: dict[str, Task] = {}
+
+
 def get_task(name: str) -> Task:
-    """The task object for ``name`` (its module is imported on first use)."""
-    try:
-        module_name, class_name = _TASKS[name].split(":")
-    except KeyError:
-        raise ConfigError(f"--task: {name!r} is not one of {', '.join(TASK_NAMES)}") from None
-    task: Task = getattr(importlib.import_module(module_name), class_name)()
+    """The task object for ``name`` (its module is imported on first use; tasks hold no state, so
+    one object per task serves every caller: the runtime asks on every ``predict``)."""
+    task = _INSTANCES.get(name)
+    if task is None:
+        try:
+            module_name, class_name = _TASKS[name].split(":")
+        except KeyError:
+            raise ConfigError(f"--task: {name!r} is not one of {', '.join(TASK_NAMES)}") from None
+        task = _INSTANCES[name] = getattr(importlib.import_module(module_name), class_name)()
     return task

@@ -132,6 +132,21 @@ class Task(ABC):
         """Method-independent metrics of ``data`` (thermal: the oracle's accuracy); default none."""
         return {}
 
+    def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
+        """Entries an exported model's card adds besides the generic ones, measured with the exported
+        ``model`` on the run's validation data ``val`` (default: none)."""
+        return {}
+
+    def finish_prediction(self, inputs: np.ndarray, prediction: np.ndarray, scene: Scene) -> np.ndarray:
+        """Complete a method's raw prediction for validated ``inputs`` (every estimator, classical
+        or learned, returns this): default unchanged. The fsr task appends its one-press check."""
+        return prediction
+
+    def same_sensor(self, a: Scene, b: Scene) -> bool:
+        """Whether a model trained on scene ``a`` applies to scene ``b`` as it is (default: the same
+        scene digest; a task whose scenes also describe stimuli compares the sensor alone)."""
+        return a.digest == b.digest
+
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
         """Validated float32 batch for ``predict`` (every estimator, classical or ONNX, calls this).
         Tasks override it to add their own physical bounds (e.g. a saturated ADC)."""
@@ -169,6 +184,11 @@ class Task(ABC):
         return logits here while its ``forward`` returns probabilities."""
         output: torch.Tensor = net(inputs)
         return output
+
+    def export_module(self, net: torch.nn.Module, scene: Scene) -> tuple[torch.nn.Module, list[str]]:
+        """The module exported to ONNX and its output names, the first being :attr:`output_key`
+        (what ``predict`` returns); a task may add outputs (strips: the readings residual)."""
+        return net, [self.output_key]
 
     def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         """Training loss of the network output against the targets from ``training_batch``."""

@@ -13,9 +13,14 @@ col   name          meaning
 3     p_contact     probability (or 0/1 flag) that a contact is present
 4     p_inside      probability (or 0 / 0.5 / 1 flag) that the contact lies inside the four
                     triangles, where position and force are trustworthy
+5     p_one_press   1 if a detected contact is explained by one round press, 0 if not
+                    (two simultaneous presses, a large flat indenter, ...: position and
+                    force are then not to be trusted) or if no contact is detected; 0.5
+                    where not checked (p_inside <= 0.5); see ``tactile_learn.fsr_check``
 ====  ============  =====================================================================
 
-Columns 0-2 are meaningful only where ``p_contact > 0.5``.
+Columns 0-2 are meaningful only where ``p_contact > 0.5`` and ``p_one_press > 0.5``. Every method
+computes columns 0-4 its own way; column 5 is the same check for all (``finish_prediction``).
 
 Truth (generated datasets and user ``.npz`` files alike): ``xy_mm`` (B, 2) and ``force_n`` (B,);
 ``force_n == 0`` marks a frame without contact (its ``xy_mm`` is ignored; NaN is allowed there).
@@ -68,7 +73,7 @@ __all__ = [
 ]
 
 #: the prediction's columns
-COLUMNS: tuple[str, ...] = ("x_mm", "y_mm", "force_n", "p_contact", "p_inside")
+COLUMNS: tuple[str, ...] = ("x_mm", "y_mm", "force_n", "p_contact", "p_inside", "p_one_press")
 #: forces of the paper's own test conditions (its copy is cut before the experiments; the upper
 #: decade of the FSR400's 0.1-10 N range, where test weights of 100 g to 1 kg sit)
 PAPER_FORCE_RANGE_N: tuple[float, float] = (1.0, 10.0)
@@ -169,6 +174,9 @@ def fsr_metrics(pred: np.ndarray, xy_mm: np.ndarray, force_n: np.ndarray, layout
     result["inside_accuracy"] = (
         float(np.mean((pred[detected, 4] > 0.5) == inside[detected])) if detected.any() else math.nan
     )
+    # the one-press check: how often a detected press is flagged as not one round press
+    flagged = detected & (pred[:, 5] < 0.5)
+    result["flagged_rate"] = float(flagged.sum() / detected.sum()) if detected.any() else math.nan
     result["paper_force_accuracy"] = PAPER_FORCE_ACCURACY
     result["paper_spatial_resolution_mm"] = PAPER_SPATIAL_RESOLUTION_MM
     return result
@@ -208,6 +216,16 @@ class FsrTask(Task):
         if config.film.gains is not None and len(batch):
             batch = to_nominal_film(batch, config, np.asarray(config.film.gains))
         return batch
+
+    def finish_prediction(self, inputs: np.ndarray, prediction: np.ndarray, scene: Scene) -> np.ndarray:
+        """Append ``p_one_press`` (:class:`~tactile_learn.fsr_check.OnePressCheck`) to an estimate of
+        the five other columns; an estimate that has it already is returned as it is."""
+        if prediction.ndim != 2 or prediction.shape[1] != len(COLUMNS) - 1:
+            return prediction
+        from tactile_learn.fsr_check import OnePressCheck
+
+        one = OnePressCheck(scene).p_one_press(inputs, prediction) if len(prediction) else np.zeros(0, np.float32)
+        return np.column_stack([prediction, one]).astype(np.float32)
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.triangulation import (
@@ -256,7 +274,10 @@ class FsrTask(Task):
         )
 
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
-        return fsr_metrics(pred, data.truth["xy_mm"], data.truth["force_n"], data.scene.sensor.layout)
+        result = fsr_metrics(pred, data.truth["xy_mm"], data.truth["force_n"], data.scene.sensor.layout)
+        if "latent_n_presses" in data.extra and len(pred):
+            result["flag_rates"] = _flag_rates(pred, data)
+        return result
 
     def calibrate(self, source: str | Path, out: str | Path, scene: Scene) -> dict[str, Any]:
         """Gains of one film from a few known presses (``.npz``/dataset with readings, xy_mm,
@@ -348,3 +369,19 @@ class FsrTask(Task):
 def _scene_toml(scene: Scene) -> str:
     header = "# Written by `tactile-learn calibrate --task fsr`: the film's part gains are in [fsr.film].\n"
     return header + dumps_toml(scene.to_dict())
+
+
+def _flag_rates(pred: np.ndarray, data: EvalData) -> dict[str, float]:
+    """Share of detected presses flagged (``p_one_press < 0.5``) per kind of frame: one round
+    press (false flags), two presses, a flat indenter (detections)."""
+    detected = pred[:, 3] > 0.5
+    flagged = pred[:, 5] < 0.5
+    two = data.extra["latent_n_presses"] >= 2
+    flat = data.extra["latent_flat"].astype(bool)
+    kinds = {"one_press": ~two & ~flat, "two_presses": two & ~flat, "flat_indenter": flat}
+    out: dict[str, float] = {}
+    for name, mask in kinds.items():
+        sel = mask & detected
+        out[f"{name}_flagged"] = float(flagged[sel].mean()) if sel.any() else math.nan
+        out[f"{name}_n"] = float(sel.sum())
+    return out

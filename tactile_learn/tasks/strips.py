@@ -19,7 +19,11 @@ from tactile_learn.validation import as_batch
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["StripsTask", "frame_groups"]
+__all__ = ["CHECK_OUTPUTS", "StripsTask", "frame_groups"]
+
+#: the exported graph's further outputs, per frame: the readings residual of its map (in noise
+#: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
+CHECK_OUTPUTS = ("residual", "balance")
 
 
 def _apart(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
@@ -89,12 +93,50 @@ class StripsTask(Task):
     output_key = "pressure"
     truth_keys = ("pressure",)
     primary_metric = ("pearson_r_mean", True)
-    net_sizes = ("small", "large")
-    default_epochs = 15  # 200k frames: ~20 min on 2 cores
+    net_sizes = ("small", "large", "corrected", "v1_small", "v1_large")
+    default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         g = scene.sensor.geometry
         return (g.n_rows + g.n_cols,)
+
+    def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
+        """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
+        of each on the run's validation frames (in-distribution, never trained on)."""
+        from tactile_learn.export import portable_path
+        from tactile_learn.runtime import OnnxEstimator
+        from tactile_learn.strips_guard import THRESHOLD_QUANTILE, calibrate_threshold
+
+        if not isinstance(model, OnnxEstimator) or val is None:
+            return {}
+        if not set(CHECK_OUTPUTS) <= {o["name"] for o in model.card_["outputs"]}:
+            return {}
+        data = self.load_eval_data(val).subset(slice(0, 20000))
+        outputs = model.predict_all(data.inputs)
+        return {
+            "consistency": {
+                "definition": "tactile_learn.strips_consistency: residual_sigma (cell-constant pressure, unit gains) "
+                "and balance",
+                "thresholds": {k: calibrate_threshold(outputs[k], THRESHOLD_QUANTILE) for k in CHECK_OUTPUTS},
+                "quantile": THRESHOLD_QUANTILE,
+                "calibrated_on": {
+                    "data": portable_path(val),
+                    "frames": len(data),
+                    **{f"{k}_median": float(np.median(outputs[k])) for k in CHECK_OUTPUTS},
+                },
+                "fallback": "intersection",
+            }
+        }
+
+    def same_sensor(self, a: Scene, b: Scene) -> bool:
+        """Same strip array (geometry, cover, piezoresistance, readout, noise), whatever is pressed."""
+
+        def sensor(scene: Scene) -> dict[str, Any]:
+            data = scene.to_dict()
+            data[self.name] = {k: v for k, v in data[self.name].items() if k != "stimuli"}
+            return {k: v for k, v in data.items() if k not in ("name", "description", "outputs")}
+
+        return a.task == b.task == self.name and sensor(a) == sensor(b)
 
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
         readout = scene.sensor.readout
@@ -134,9 +176,29 @@ class StripsTask(Task):
         extra = {k: v for k, v in arrays.items() if k.startswith("latent_")}
         return EvalData(inputs=readings, truth={"pressure": pressure}, scene=scene, extra=extra, source=str(path))
 
+    def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
+        """Metrics of the estimate; for a general learned model (one with a readings residual and a
+        flag threshold) also its ``flag`` report: how many frames it flags, how good its maps are on
+        flagged and unflagged frames, and the metrics with the fallback on flagged frames."""
+        checked = _checked_model(estimator)
+        if checked is None:
+            return self.metrics(estimator.predict(data.inputs), data)
+        out = checked.check(data.inputs)
+        result = self.metrics(out["learned"], data)
+        result["flag"] = _flag_report(self, out, data, checked)
+        return result
+
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
+        from tactile_learn.strips_consistency import StripConsistency
+
         pitch = data.scene.sensor.geometry.pitch_mm
         result = strip_map_metrics(pred, data.truth["pressure"], pitch)
+        if len(data):
+            # does the estimate explain the readings? (the same residual for every method)
+            residual = StripConsistency(data.scene).residual(data.inputs, pred)
+            result["residual_rel_median"] = float(np.median(residual["residual_rel"]))
+            result["residual_rel_p95"] = float(np.percentile(residual["residual_rel"], 95))
+            result["residual_sigma_median"] = float(np.median(residual["residual_sigma"]))
         if "latent_n_contacts" in data.extra and len(data):
             by_group = {}
             for group, mask in frame_groups(data.extra, pitch).items():
@@ -186,7 +248,70 @@ class StripsTask(Task):
 
         return build_strip_net(size, scene, stats)
 
-    def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
+    def export_module(self, net: torch.nn.Module, scene: Scene) -> tuple[torch.nn.Module, list[str]]:
+        """A general network (architecture 2) is exported with two more outputs per frame
+        (:data:`CHECK_OUTPUTS`): the readings residual of its map and the readings' balance."""
+        import torch
+
+        from synth.dataset import simulate_shard
+        from tactile_learn.nets.strips_deploy import deploy
+        from tactile_learn.nets.strips_general import GeneralStripNet, GeneralStripNetWithResidual
+
+        if not isinstance(net, GeneralStripNet):
+            return net, [self.output_key]
+        g = scene.sensor.geometry
+        if net.correct or g.n_rows != g.n_cols:
+            return GeneralStripNetWithResidual(net, scene), [self.output_key, *CHECK_OUTPUTS]
+        # the same function with fewer graph nodes (checked against the trained module on these frames)
+        probe = torch.from_numpy(simulate_shard(scene, 12345, 0, 256)["readings"])
+        return deploy(net, scene, probe), [self.output_key, *CHECK_OUTPUTS]
+
+    def train_forward(self, net: torch.nn.Module, inputs: torch.Tensor) -> Any:
+        """The general network's final and intermediate maps (both supervised); else ``net(x)``."""
+        outputs = getattr(net, "train_outputs", None)
+        return outputs(inputs) if outputs is not None else net(inputs)
+
+    def loss(self, output: Any, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         from tactile_learn.nets.strips import strip_loss
 
         return strip_loss(output, targets["pressure"])
+
+
+def _checked_model(estimator: Estimator) -> Any:
+    """The estimator as a :class:`~tactile_learn.strips_guard.CheckedStripModel` when it is one, or
+    an ONNX model whose card carries a flag threshold; else ``None``."""
+    from tactile_learn.runtime import OnnxEstimator
+    from tactile_learn.strips_guard import CheckedStripModel
+
+    if isinstance(estimator, CheckedStripModel):
+        return estimator
+    if isinstance(estimator, OnnxEstimator):
+        card = estimator.card_
+        has_outputs = set(CHECK_OUTPUTS) <= {o["name"] for o in card["outputs"]}
+        if has_outputs and "thresholds" in card.get("consistency", {}):
+            return CheckedStripModel(estimator)
+    return None
+
+
+def _flag_report(task: StripsTask, out: dict[str, np.ndarray], data: EvalData, checked: Any) -> dict[str, Any]:
+    from tactile_learn.metrics import pearson_per_frame
+
+    flagged = out["flagged"]
+    r = pearson_per_frame(out["learned"], data.truth["pressure"])
+
+    def mean_r(mask: np.ndarray) -> float:
+        values = r[mask & np.isfinite(r)]
+        return float(values.mean()) if values.size else float("nan")
+
+    with_fallback = strip_map_metrics(out["pressure"], data.truth["pressure"], data.scene.sensor.geometry.pitch_mm)
+    return {
+        "thresholds": dict(checked.thresholds_),
+        "fallback": str(
+            checked.fallback if isinstance(checked.fallback, str) or checked.fallback is None else checked.fallback.name
+        ),
+        "flagged_share": float(flagged.mean()) if len(flagged) else float("nan"),
+        "residual_median": float(np.median(out["residual"])) if len(flagged) else float("nan"),
+        "pearson_r_mean_unflagged": mean_r(~flagged),
+        "pearson_r_mean_flagged": mean_r(flagged),
+        "with_fallback": {k: with_fallback[k] for k in ("pearson_r_mean", "nrmse")},
+    }

@@ -371,7 +371,7 @@ class TriangulationEstimator(Estimator):
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
         out, _ = triangulate(loads, config, self.model_, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return out.astype(np.float32)
+        return FsrTask().finish_prediction(readings, out.astype(np.float32), self.scene)
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):

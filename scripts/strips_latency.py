@@ -1,0 +1,68 @@
+"""Batch-1 latency of the strip methods, interleaved so that every method sees the same machine
+load: rounds of ``--per-round`` calls per method, repeated, median per call over all rounds. Prints
+the load average before and after (latency floors are measured on a quiet machine, load < 1).
+
+    python scripts/strips_latency.py --rounds 200 --json results/strips_latency.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+from synth.dataset import simulate_shard
+from synth.scene import load_scene
+from tactile_learn.methods import resolve_method
+from tactile_learn.strips_guard import CheckedStripModel
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--rounds", type=int, default=200)
+    parser.add_argument("--per-round", type=int, default=20)
+    parser.add_argument("--models", nargs="+", default=["strips16", "strips16_spheres"])
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    scene = load_scene("strips16")
+    readings = simulate_shard(scene, 909090, 0, 512)["readings"]
+    methods = {"intersection": resolve_method("strips", "intersection", scene)}
+    for name in args.models:
+        methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
+    methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1)
+    times: dict[str, list[float]] = {k: [] for k in methods}
+    for est in methods.values():  # warm-up: sessions, caches
+        for i in range(50):
+            est.predict(readings[i : i + 1])
+    load_before = os.getloadavg()
+    for r in range(args.rounds):
+        for name, est in methods.items():
+            for k in range(args.per_round):
+                frame = readings[(r * args.per_round + k) % len(readings)][None]
+                start = time.perf_counter()
+                est.predict(frame)
+                times[name].append(time.perf_counter() - start)
+    load_after = os.getloadavg()
+    result = {
+        "median_us": {k: float(np.median(v) * 1e6) for k, v in times.items()},
+        "p90_us": {k: float(np.percentile(v, 90) * 1e6) for k, v in times.items()},
+        "calls_per_method": args.rounds * args.per_round,
+        "load_average_1min": [load_before[0], load_after[0]],
+        "command": "python scripts/strips_latency.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+    }
+    for name in methods:
+        print(f"{name:40s} median {result['median_us'][name]:8.1f} us   p90 {result['p90_us'][name]:8.1f} us")
+    print(f"load average (1 min) before / after: {load_before[0]:.2f} / {load_after[0]:.2f}")
+    if args.json:
+        from synth.io import atomic_write_json
+
+        atomic_write_json(args.json, json.loads(json.dumps(result)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+"""Is an FSR frame one round press at all? The check behind the ``p_one_press`` column.
+
+Every FSR estimator (triangulation and the learned model alike) answers with *one* position and
+force. Two simultaneous presses, or a large flat indenter, load the six discs in a pattern no
+single round press produces, and the estimators still return a position: confident and wrong.
+
+The check pushes the estimate back through the film's forward model (``synth.sensors.fsr``: the
+load path to the discs with the nominal gain and the median tip radius, the FSR law) and compares
+the six modelled conductances with the measured ones. Because an estimate may be a little off even
+for a genuine single press (triangulation's median error is ~3 mm), the estimate is first refined
+by a few Levenberg-Marquardt steps on ``(x, y, log F)`` against the readings, from the estimate and
+from the sensors' conductance-weighted centroid: the residual is then that of the best single press
+near either. (Where only one sensor feels the press, a start on that sensor can stall a few mm from
+the truth: triangulation, which puts such presses on the sensor, gets more false flags than the
+learned model, whose estimate starts the refinement close to the truth.) ``residual`` is the RMS conductance misfit over
+the six sensors divided by the RMS measured conductance plus ``floor_us`` (part gains of +/-6 %
+and +/-2 % per press leave a few per cent on genuine presses).
+
+``p_one_press`` is 1 where the residual is at most ``threshold`` and 0 where it is above (a flag,
+not a calibrated probability); frames without a detected contact get 0 (as every column does), and
+contacts the estimator places outside the triangles (``p_inside <= 0.5``, where its position and
+force are extrapolations already) get 0.5: not checked. A frame is flagged where ``p_one_press < 0.5``. The
+default threshold was set on normal single presses of unseen films (1 % of them flagged, see
+``scripts/fsr_flagging.py``, which also reports how often two presses and flat indenters are caught).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from synth.scene import Scene
+from synth.sensors import fsr
+
+__all__ = ["DEFAULT_THRESHOLD", "OnePressCheck"]
+
+#: residual above which a frame is flagged (see the module docstring for the rates it gives)
+DEFAULT_THRESHOLD = 0.05
+
+
+class OnePressCheck:
+    """Residual of the best single round press near an estimate, and the flag (module docstring)."""
+
+    def __init__(self, scene: Scene, threshold: float = DEFAULT_THRESHOLD, steps: int = 6, floor_us: float = 5.0):
+        self.scene = scene
+        self.threshold = threshold
+        self.steps = steps
+        self.floor_us = floor_us
+
+    @cached_property
+    def _model(self) -> tuple[fsr.FsrConfig, fsr.FsrLaw, fsr.Readout, float]:
+        config: fsr.FsrConfig = self.scene.sensor
+        return (
+            config,
+            fsr.FsrLaw(config.element),
+            fsr.Readout(config.readout),
+            float(np.median(config.stimulus.tip_radii_mm)),
+        )
+
+    @cached_property
+    def _path(self) -> tuple[fsr.Transfer, np.ndarray]:
+        """The film's load path and sensor positions, looked up once (``fsr.sensor_loads`` finds
+        them on every call: a large share of the check's time at batch 1)."""
+        config = self._model[0]
+        return fsr.make_transfer(config), fsr.sensor_positions(config.layout)
+
+    def conductance(self, params: np.ndarray) -> np.ndarray:
+        """Modelled conductances (B, 6) (uS) of presses ``params`` (B, 3): x, y (mm), log force (N),
+        the round tip of median radius (``fsr.sensor_loads`` with the law, nominal gain)."""
+        config, law, _, tip = self._model
+        transfer, positions = self._path
+        force = np.exp(np.clip(params[:, 2], -10.0, 6.0))  # clipped: a diverging step cannot overflow
+        distance = np.sqrt(((params[:, None, :2] - positions[None]) ** 2).sum(axis=2))
+        radius = fsr.hertz_radius_mm(force, np.full(len(force), tip), config.layout)
+        return law.conductance_us(transfer.per_newton(distance, radius[:, None]) * force[:, None], 1.0)
+
+    def residual(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """Relative conductance misfit (B,) of the best single press near ``estimate`` (B, >= 3)
+        for nominal-film ``readings`` (B, 6), or near the sensors' conductance-weighted centroid
+        (a second start: an estimate in the wrong triangle must not pass for a misfit)."""
+        config, _, readout, _ = self._model
+        measured = readout.conductance_us(np.asarray(readings, dtype=np.float64))
+        log_force = np.log(np.clip(estimate[:, 2], 1e-3, None)).astype(np.float64)
+        weights = np.maximum(measured - config.element.leak_conductance_us, 0.0) + 1e-12
+        centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
+        starts = [np.column_stack([estimate[:, 0], estimate[:, 1], log_force]), np.column_stack([centroid, log_force])]
+        return np.asarray(np.minimum(*(self._refined_misfit(measured, s.astype(np.float64)) for s in starts)))
+
+    def _refined_misfit(self, measured: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """RMS misfit after Levenberg-Marquardt steps from ``params`` (damping per frame: shrunk after
+        a step that lowers the misfit, grown after one that does not, which is then undone)."""
+        step = np.array([0.05, 0.05, 0.01])  # finite-difference steps: mm, mm, log N
+        base = self.conductance(params)
+        cost = np.sum((measured - base) ** 2, axis=1)
+        damping = np.full(len(params), 1e-3)
+        for _ in range(self.steps):
+            shifted = np.concatenate([params + np.eye(3)[k] * step[k] for k in range(3)])
+            jac = (self.conductance(shifted).reshape(3, len(params), -1) - base[None]) / step[:, None, None]
+            jac = jac.transpose(1, 2, 0)  # (B, 6, 3)
+            jtj = jac.transpose(0, 2, 1) @ jac
+            scale = np.trace(jtj, axis1=1, axis2=2)[:, None, None] + 1e-12
+            rhs = jac.transpose(0, 2, 1) @ (measured - base)[..., None]
+            delta = np.linalg.solve(jtj + damping[:, None, None] * scale * np.eye(3), rhs)[..., 0]
+            candidate = params + np.clip(delta, [-5.0, -5.0, -1.0], [5.0, 5.0, 1.0])
+            trial = self.conductance(candidate)
+            trial_cost = np.sum((measured - trial) ** 2, axis=1)
+            better = trial_cost < cost
+            params = np.where(better[:, None], candidate, params)
+            base = np.where(better[:, None], trial, base)
+            cost = np.where(better, trial_cost, cost)
+            damping = np.where(better, damping / 3.0, damping * 5.0)
+        return self._misfit(measured, base)
+
+    def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+        """1 where a detected contact is explained by one round press, else 0 (B,); a frame without
+        a detected contact has 0, like every other column of a no-contact estimate.
+
+        Cheapest first (refining only lowers the misfit, so a frame that passes a stage is done):
+        the estimate as it is, then refined from the estimate, then refined from the centroid. A
+        good estimator's genuine presses mostly pass at the first stage: one forward model."""
+        out = np.zeros(len(estimate), dtype=np.float32)
+        detected = estimate[:, 3] > 0.5
+        # outside the triangles (p_inside <= 0.5) position and force are extrapolations already:
+        # such frames are not checked (0.5, undecided), which also keeps the check cheap
+        out[detected & (estimate[:, 4] <= 0.5)] = 0.5
+        contact = np.flatnonzero(detected & (estimate[:, 4] > 0.5))
+        if not contact.size:
+            return out
+        config, _, readout, _ = self._model
+        measured = readout.conductance_us(np.asarray(readings, dtype=np.float64)[contact])
+        est = estimate[contact]
+        log_force = np.log(np.clip(est[:, 2], 1e-3, None)).astype(np.float64)
+        start = np.column_stack([est[:, 0], est[:, 1], log_force]).astype(np.float64)
+        passed = self._misfit(measured, self.conductance(start)) <= self.threshold
+        doubt = np.flatnonzero(~passed)
+        if doubt.size:
+            passed[doubt] = self._refined_misfit(measured[doubt], start[doubt]) <= self.threshold
+        doubt = np.flatnonzero(~passed)
+        if doubt.size:
+            weights = np.maximum(measured[doubt] - config.element.leak_conductance_us, 0.0) + 1e-12
+            centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
+            second = np.column_stack([centroid, log_force[doubt]])
+            passed[doubt] = self._refined_misfit(measured[doubt], second) <= self.threshold
+        out[contact] = passed.astype(np.float32)
+        return out
+
+    def _misfit(self, measured: np.ndarray, model: np.ndarray) -> np.ndarray:
+        return np.asarray(
+            np.sqrt(np.mean((measured - model) ** 2, axis=1)) / (np.sqrt(np.mean(measured**2, axis=1)) + self.floor_us)
+        )
