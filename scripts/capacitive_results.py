@@ -31,13 +31,13 @@ import numpy as np
 
 from synth.config import replace
 from synth.dataset import simulate_shard
+from synth.io import atomic_write_json, json_dumps
 from synth.scene import load_scene
 from synth.sensors.capacitive import CapacitiveModel, PressGenerator
 from synth.sensors.capacitive.config import G_TO_N
 from synth.sensors.capacitive.physics import device_cells
 from synth.stimuli import KINDS
 from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, fit_calibration
-from tactile_learn.cli.common import dumps, write_json
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.capacitive import front_end_errors
 
@@ -241,9 +241,9 @@ def main() -> int:
     result = {"calibration": calibration, "hysteresis": hysteresis, "fingertip": fingertip, "tune": tune}[args.what](
         args
     )
-    print(dumps(result))
+    print(json_dumps(result))
     if args.json:
-        write_json(args.json, result)
+        atomic_write_json(args.json, result)
     return 0
 
 

@@ -14,7 +14,6 @@ import sys
 from pathlib import Path
 
 from synth.io import atomic_write_json
-from tactile_learn.cli.common import json_ready
 from tactile_learn.export import portable_path
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import card_path, read_card
@@ -54,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
             "mean_over_families": report["mean_over_families"],
         }
     card.setdefault("metrics", {})[args.name] = {**entry, "command": command}
-    atomic_write_json(card_path(args.model), json_ready(json.loads(json.dumps(card, default=float))))
+    atomic_write_json(card_path(args.model), card)
     primary = task.primary_metric[0]
     values = entry.get("values") or entry["mean_over_families"]
     print(f"{args.model}: metrics.{args.name}.{primary} = {values[primary]:.4f}")

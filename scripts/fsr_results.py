@@ -73,19 +73,10 @@ def ensure_data(work: Path, n_train: int) -> dict[str, Path]:
 
 
 def learned_estimators(run: Path, onnx: Path | None) -> dict[str, Estimator]:
-    import torch
-
     from tactile_learn.torch_estimator import TorchEstimator
-    from tactile_learn.train import load_run
 
-    torch.set_num_threads(1)
-    saved = load_run(run)
-    task = FsrTask()
-    scene = load_scene("fsr6")
-    net = task.build_net(saved["size"], scene, saved["stats"])
-    net.load_state_dict(saved["state_dict"])
-    net.eval()
-    methods: dict[str, Estimator] = {f"learned ({saved['size']}, torch)": TorchEstimator(net, "fsr", scene)}
+    torch_net = TorchEstimator.from_checkpoint(run, load_scene("fsr6"), threads=1)
+    methods: dict[str, Estimator] = {"learned (torch)": torch_net}
     if onnx is not None:
         from tactile_learn.runtime import OnnxEstimator
 

@@ -14,7 +14,6 @@ and the r of the documented fallback (the intersection rule) on the flagged ones
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 
 import numpy as np
@@ -88,9 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"mean flagged: in-family {inside:.1f} %, out-of-family {outside:.1f} %")
     if args.json:
         from synth.io import atomic_write_json
-        from tactile_learn.cli.common import json_ready
 
-        atomic_write_json(args.json, json_ready(json.loads(json.dumps(result))))
+        atomic_write_json(args.json, result)
     return 0
 
 

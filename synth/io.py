@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,7 +18,16 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["atomic_open", "atomic_save_npy", "atomic_save_npz", "atomic_write_json", "atomic_write_text", "sha256_file"]
+__all__ = [
+    "atomic_open",
+    "atomic_save_npy",
+    "atomic_save_npz",
+    "atomic_write_json",
+    "atomic_write_text",
+    "json_dumps",
+    "json_ready",
+    "sha256_file",
+]
 
 
 @contextlib.contextmanager
@@ -42,8 +52,32 @@ def atomic_write_text(path: str | Path, text: str) -> None:
         handle.write(text)
 
 
+def json_ready(value: Any) -> Any:
+    """``value`` as strict JSON data: NaN/inf (not valid JSON) become ``None``, numpy scalars and
+    arrays Python numbers and lists, tuples lists, mapping keys strings, any other object its ``str``."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return json_ready(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return str(value)  # paths, dtypes, enums: their readable form (what a report wants)
+
+
+def json_dumps(data: Any) -> str:
+    """Indented strict JSON of ``data`` (see :func:`json_ready`)."""
+    return json.dumps(json_ready(data), indent=2, allow_nan=False)
+
+
 def atomic_write_json(path: str | Path, data: Any) -> None:
-    atomic_write_text(path, json.dumps(data, indent=2, sort_keys=False) + "\n")
+    """``data`` as strict JSON (:func:`json_ready`), written atomically: the one JSON writer."""
+    atomic_write_text(path, json_dumps(data) + "\n")
 
 
 def atomic_save_npy(path: str | Path, array: np.ndarray) -> None:

@@ -40,8 +40,9 @@ from tactile_learn.estimators.base import Estimator
 from tactile_learn.methods import shipped_models
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
+from tactile_learn.timing import time_predict
 
-__all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info", "time_predict"]
+__all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info"]
 
 #: per task: (metric plotted as error, lower is better?) - the Pareto plot's y axis
 ERROR_METRIC: dict[str, tuple[str, bool]] = {
@@ -71,46 +72,6 @@ def machine_info() -> dict[str, Any]:
         except ImportError:
             continue
     return {"cpu": cpu, "cores": os.cpu_count(), "platform": sys.platform, "versions": versions}
-
-
-def time_predict(
-    predict: Callable[[np.ndarray], Any],
-    inputs: np.ndarray,
-    *,
-    repeats: int,
-    budget_s: float,
-    warmup: int = 5,
-) -> dict[str, float]:
-    """Latency per frame at batch 1 (p50, p99 in us) and throughput at batch 1024 (frames/s)."""
-    n = len(inputs)
-    for i in range(warmup):
-        predict(inputs[i % n : i % n + 1])
-    times: list[float] = []
-    deadline = time.perf_counter() + budget_s
-    i = 0
-    while i < repeats and (i < 10 or time.perf_counter() < deadline):
-        frame = inputs[i % n : i % n + 1]
-        start = time.perf_counter()
-        predict(frame)
-        times.append(time.perf_counter() - start)
-        i += 1
-    big = np.resize(inputs, (1024, *inputs.shape[1:])).astype(np.float32)
-    predict(big)
-    batch_times: list[float] = []
-    deadline = time.perf_counter() + budget_s
-    for k in range(max(3, repeats // 50)):
-        start = time.perf_counter()
-        predict(big)
-        batch_times.append(time.perf_counter() - start)
-        if k >= 2 and time.perf_counter() > deadline:
-            break
-    us = np.array(times) * 1e6
-    return {
-        "latency_us_p50_b1": float(np.median(us)),
-        "latency_us_p99_b1": float(np.percentile(us, 99)),
-        "throughput_fps_b1024": float(1024 / np.median(batch_times)),
-        "latency_samples": len(times),
-    }
 
 
 def _bench_data(task_name: str, scene: Scene | None, n: int, data: str | None) -> EvalData:
@@ -193,19 +154,10 @@ def _torch_available() -> bool:
 
 
 def _torch_model(weights: Path, card: dict[str, Any]) -> Estimator:
-    import torch
-
     from synth.scene import parse_scene
     from tactile_learn.torch_estimator import TorchEstimator
 
-    saved = torch.load(weights, map_location="cpu", weights_only=False)
-    task = get_task(card["task"])
-    scene = parse_scene(card["scene"])
-    net = task.build_net(saved["size"], scene, saved["stats"])
-    net.load_state_dict(saved["state_dict"])
-    net.eval()
-    torch.set_num_threads(1)
-    est = TorchEstimator(net, card["task"], scene, name=weights.with_suffix(".onnx").name)
+    est = TorchEstimator.from_checkpoint(weights, parse_scene(card["scene"]), threads=1)
     est.backend = "torch-eager-1t"
     return est
 

@@ -15,7 +15,6 @@
 
 from __future__ import annotations
 
-import io
 import json
 import shlex
 import sys
@@ -32,9 +31,9 @@ from synth.dataset import simulate_shard
 from synth.errors import ModelError
 from synth.io import atomic_open, atomic_write_json, sha256_file
 from synth.scene import Scene, parse_scene
+from tactile_learn.checkpoints import build_net, load_weights, save_torch
 from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
 from tactile_learn.tasks import get_task
-from tactile_learn.train import load_run
 
 __all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "to_onnx"]
 
@@ -93,12 +92,10 @@ def export(
     out = Path(out)
     if out.suffix != ".onnx":
         raise ModelError(f"--out: {out} must end in .onnx")
-    saved = load_run(run)
+    saved = load_weights(run)
     task = get_task(saved["task"])
     scene = parse_scene(saved["scene"], f"{run}/model.pt")
-    net = task.build_net(saved["size"], scene, saved["stats"])
-    net.load_state_dict(saved["state_dict"])
-    net.eval()
+    net = build_net(saved, scene)
     graph, output_names = task.export_module(net, scene)
     graph.eval()
     inputs = _probe_inputs(task.name, scene, 64)
@@ -163,19 +160,17 @@ def export(
         "exported": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     # the torch weights beside the ONNX file: bench's torch-eager backend and fine-tuning use them
-    weights = io.BytesIO()
-    torch.save(
-        {"task": task.name, "size": saved["size"], "stats": saved["stats"], "state_dict": saved["state_dict"]}, weights
+    save_torch(
+        out.with_suffix(".pt"),
+        {"task": task.name, "size": saved["size"], "stats": saved["stats"], "state_dict": saved["state_dict"]},
     )
-    with atomic_open(out.with_suffix(".pt"), "wb") as handle:
-        handle.write(weights.getvalue())
     # write the card first without held-out metrics, so the runtime can load the model to measure them
     atomic_write_json(card_path(out), card)
     calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
     extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
     if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames
         card.update(extras)
-        atomic_write_json(card_path(out), _json_ready(card))
+        atomic_write_json(card_path(out), card)
     if test is not None:
         data = task.load_eval_data(test)
         metrics = task.evaluate(OnnxEstimator(out), data)
@@ -184,7 +179,7 @@ def export(
             "values": metrics,
             "command": command or _command_line(),
         }
-        atomic_write_json(card_path(out), _json_ready(card))
+        atomic_write_json(card_path(out), card)
     return card
 
 
@@ -211,12 +206,6 @@ def _dataset_seed(path: str | Path) -> int | None:
 def _command_line() -> str:
     args = [portable_path(a) if Path(a).is_absolute() else a for a in sys.argv[1:]]
     return "tactile-learn " + " ".join(shlex.quote(a) for a in args)
-
-
-def _json_ready(value: Any) -> Any:
-    from tactile_learn.cli.common import json_ready
-
-    return json_ready(value)
 
 
 def _strip_debug_info(model: Any) -> None:

@@ -3,6 +3,7 @@ backend). Imports torch: never imported by the runtime or the classical path."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,6 +28,22 @@ class TorchEstimator(Estimator):
         self.scene = scene
         self.name = name
         self.batch_size = batch_size
+
+    @classmethod
+    def from_checkpoint(
+        cls, source: str | Path, scene: Scene | None = None, name: str | None = None, threads: int | None = None
+    ) -> TorchEstimator:
+        """The network of a finished run folder or a model's ``NAME.pt`` (see
+        :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on);
+        ``threads`` sets torch's intra-op threads (process-wide)."""
+        from tactile_learn.checkpoints import build_net, load_weights, weights_scene
+
+        saved = load_weights(source)
+        scene = scene or weights_scene(saved)
+        if threads:
+            torch.set_num_threads(threads)
+        label = name or (Path(source).with_suffix(".onnx").name if Path(source).is_file() else Path(source).name)
+        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label)
 
     def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:
         return self

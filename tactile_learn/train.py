@@ -12,8 +12,6 @@
 
 from __future__ import annotations
 
-import io
-import json
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -26,15 +24,16 @@ import torch
 from synth import __version__
 from synth.dataset import Dataset
 from synth.errors import ConfigError, DataError
-from synth.io import atomic_open, atomic_write_json
+from synth.io import atomic_write_json
+from tactile_learn.checkpoints import MODEL, build_net, load_torch, load_weights, save_torch
+from tactile_learn.progress import progress_bar
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.torch_estimator import TorchEstimator
 
-__all__ = ["TrainConfig", "load_run", "train"]
+__all__ = ["TrainConfig", "train"]
 
 CHECKPOINT = "checkpoint.pt"
-MODEL = "model.pt"
 
 
 @dataclass(frozen=True)
@@ -66,22 +65,6 @@ class TrainConfig:
             raise ConfigError(f"--lr: {self.lr} is out of range (0, 1)")
         if self.epochs < 0 or self.seed < 0 or self.threads < 0 or self.max_batches < 0:
             raise ConfigError("--epochs, --seed, --threads and --max-batches must be non-negative")
-
-
-def _save_torch(path: Path, obj: Any) -> None:
-    buffer = io.BytesIO()
-    torch.save(obj, buffer)
-    with atomic_open(path, "wb") as handle:
-        handle.write(buffer.getvalue())
-
-
-def _load_torch(path: Path) -> Any:
-    try:
-        return torch.load(path, map_location="cpu", weights_only=False)
-    except Exception as exc:  # torch raises assorted errors for truncated or foreign files
-        raise DataError(
-            f"{path}: unreadable checkpoint ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
-        ) from None
 
 
 def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
@@ -122,8 +105,6 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
 
 def train(config: TrainConfig, resume: bool = False, progress: bool | None = None) -> dict[str, Any]:
     """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``)."""
-    from tactile_learn.cli.common import progress_bar
-
     config.validate()
     task = get_task(config.task)
     size = config.size or task.net_sizes[0]
@@ -153,14 +134,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     init = _read_init(config.init, size) if config.init else None
     if init is not None:
         stats = dict(init["stats"])  # a fine-tuned network keeps its normalisation
-    net = task.build_net(size, scene, stats)
-    if init is not None:
-        try:
-            net.load_state_dict(init["state_dict"])
-        except RuntimeError as exc:
-            raise DataError(
-                f"{config.init}: its weights do not fit this network ({str(exc).splitlines()[0]})"
-            ) from None
+    # a fine-tuned network starts from its weights (a mismatch is a ModelError naming the file)
+    net = build_net(init, scene) if init is not None else task.build_net(size, scene, stats)
     optimizer = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
     if config.max_batches:
@@ -180,7 +155,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "seconds": 0.0,
     }
     if resume:
-        ckpt = _load_torch(ckpt_path)
+        ckpt = load_torch(ckpt_path)
         # the thread count may change on resume (a busier machine): it changes speed, not the recipe
         started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
         if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
@@ -240,7 +215,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 "seconds": state["seconds"],
             }
         )
-        _save_torch(
+        save_torch(
             ckpt_path,
             {
                 "config": asdict(config),
@@ -274,7 +249,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "history": state["history"],
         "config": asdict(config),
     }
-    _save_torch(
+    save_torch(
         out / MODEL,
         {
             "task": config.task,
@@ -286,40 +261,21 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
             "version": __version__,
         },
     )
-    atomic_write_json(out / "metrics.json", _jsonable(result))
+    atomic_write_json(out / "metrics.json", result)
     _loss_plot(state["history"], out / "loss.png", metric)
     return result
 
 
 def _read_init(source: str, size: str) -> dict[str, Any]:
     """The weights and statistics of ``source`` (a finished run or a model's ``NAME.pt``)."""
-    path = Path(source)
-    saved = load_run(path) if path.is_dir() else _load_torch(path)
-    if not isinstance(saved, dict) or "state_dict" not in saved or "stats" not in saved:
-        raise DataError(f"{source}: not a finished run or a model's weights file (NAME.pt)")
-    if saved.get("size") != size:
-        raise ConfigError(f"--init: {source} holds a {saved.get('size')!r} network, not {size!r} (pass --size)")
+    saved = load_weights(source)
+    if saved["size"] != size:
+        raise ConfigError(f"--init: {source} holds a {saved['size']!r} network, not {size!r} (pass --size)")
     return saved
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:
     return {k: v for k, v in metrics.items() if isinstance(v, (int, float, dict))}
-
-
-def _jsonable(value: Any) -> Any:
-    from tactile_learn.cli.common import json_ready
-
-    return json_ready(json.loads(json.dumps(value, default=str)))
-
-
-def load_run(run: str | Path) -> dict[str, Any]:
-    """The best model of a finished run (``RUN/model.pt``)."""
-    path = Path(run) / MODEL
-    if not path.is_file():
-        hint = " (training has not finished: rerun it with --resume)" if (Path(run) / CHECKPOINT).exists() else ""
-        raise DataError(f"{path}: no trained model{hint}")
-    data: dict[str, Any] = _load_torch(path)
-    return data
 
 
 def default_threads() -> int:

@@ -11,11 +11,12 @@ import pytest
 
 from synth.dataset import generate
 from synth.scene import Scene, load_scene
-from tactile_learn.bench import bench_task, time_predict
+from tactile_learn.bench import bench_task
 from tactile_learn.bench_report import markdown, pareto_plot
 from tactile_learn.cli import main
 from tactile_learn.estimators.classical.intersection import IntersectionEstimator
 from tactile_learn.tasks.strips import StripsTask
+from tactile_learn.timing import time_predict
 
 
 class SlowIntersection(IntersectionEstimator):

@@ -19,10 +19,11 @@ import torch
 from synth.dataset import generate
 from synth.errors import InputError, ModelError
 from synth.scene import load_scene
+from tactile_learn.checkpoints import load_weights as load_run
 from tactile_learn.export import PARITY_TOL, export
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.torch_estimator import TorchEstimator
-from tactile_learn.train import TrainConfig, load_run, train
+from tactile_learn.train import TrainConfig, train
 
 TRAIN_ARGS = ["--task", "strips", "--epochs", "3", "--batch-size", "64", "--seed", "5", "--threads", "1"]
 

@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from synth.errors import ConfigError
-from synth.io import atomic_write_text
-from tactile_learn.cli.common import positive_int, write_json
+from synth.io import atomic_write_json, atomic_write_text
+from tactile_learn.cli.common import positive_int
 
 HELP = "benchmark every method and backend of a task: error, latency (b1) and throughput (b1024)"
 EXAMPLES = """\
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         print(markdown(result), flush=True)
     payload: dict[str, Any] = results[0] if len(results) == 1 else {"task": "all", "results": results}
     if args.json:
-        write_json(args.json, payload)
+        atomic_write_json(args.json, payload)
         atomic_write_text(Path(args.json).with_suffix(".md"), "\n".join(markdown(r) for r in results))
     if args.plot:
         pareto_plot(results, args.plot)
@@ -92,6 +92,6 @@ def _run_suite(args: argparse.Namespace) -> int:
     )
     print(suite_markdown(result), flush=True)
     if args.json:
-        write_json(args.json, result)
+        atomic_write_json(args.json, result)
         atomic_write_text(Path(args.json).with_suffix(".md"), suite_markdown(result))
     return 0

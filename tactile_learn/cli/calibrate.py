@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from synth.io import json_dumps
 from synth.scene import load_scene
-from tactile_learn.cli.common import dumps
 from tactile_learn.tasks import TASK_NAMES, get_task
 
 HELP = "fit a real sensor's own parameters from labelled recordings; writes a scene .toml"
@@ -29,5 +29,5 @@ def run(args: argparse.Namespace) -> int:
     task = get_task(args.task)
     scene = load_scene(args.scene or task.default_scene)
     summary = task.calibrate(args.data, args.out, scene)
-    print(dumps(summary))
+    print(json_dumps(summary))
     return 0

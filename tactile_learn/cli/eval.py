@@ -8,8 +8,9 @@ from pathlib import Path
 
 from synth.dataset import MANIFEST
 from synth.errors import ConfigError, DataError
+from synth.io import atomic_write_json, json_dumps
 from synth.scene import load_scene
-from tactile_learn.cli.common import dumps, positive_int, write_json
+from tactile_learn.cli.common import positive_int
 from tactile_learn.methods import model_scene, resolve_method
 from tactile_learn.tasks import TASK_NAMES, get_task
 
@@ -77,12 +78,12 @@ def run(args: argparse.Namespace) -> int:
         "seconds": elapsed,
     }
     if args.json:
-        write_json(args.json, result)
+        atomic_write_json(args.json, result)
     if args.summary:
         scalars = [f"{k} {v:.4g}" for k, v in metrics.items() if isinstance(v, float) and not k.startswith("n_")]
         print(f"{result['method']:>22s} on {args.data} ({len(data)} frames): " + ", ".join(scalars[:5]))
     else:
-        print(dumps(result))
+        print(json_dumps(result))
     return 0
 
 
@@ -106,12 +107,12 @@ def _run_suite(args: argparse.Namespace) -> int:
         **report,
     }
     if args.json:
-        write_json(args.json, result)
+        atomic_write_json(args.json, result)
     if args.summary:
         metric = get_task(args.task).primary_metric[0]
         for name, metrics in report["families"].items():
             print(f"{result['method']:>22s} {name:>16s}: {metric} {metrics.get(metric, float('nan')):.4g}")
         print(f"{result['method']:>22s} {'mean':>16s}: {metric} {report['mean_over_families'].get(metric):.4g}")
     else:
-        print(dumps(result))
+        print(json_dumps(result))
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from tactile_learn.cli.common import dumps
+from synth.io import json_dumps
 
 HELP = "export a trained run to ONNX (parity-checked) with its model card"
 EXAMPLES = """\
@@ -36,5 +36,5 @@ def run(args: argparse.Namespace) -> int:
         "parity": card["parity"],
         "metrics": card["metrics"].get("heldout", {}).get("values", card["metrics"]["validation"]),
     }
-    print(dumps(summary))
+    print(json_dumps(summary))
     return 0

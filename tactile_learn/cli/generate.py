@@ -7,7 +7,8 @@ import time
 
 from synth.dataset import generate
 from synth.scene import load_scene
-from tactile_learn.cli.common import non_negative_int, on_off, positive_int, progress_bar
+from tactile_learn.cli.common import non_negative_int, on_off, positive_int
+from tactile_learn.progress import progress_bar
 
 HELP = "simulate a sharded, seeded, resumable dataset of a scene"
 EXAMPLES = """\

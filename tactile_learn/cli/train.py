@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from tactile_learn.cli.common import dumps, non_negative_int, positive_int
+from synth.io import json_dumps
+from tactile_learn.cli.common import non_negative_int, positive_int
 from tactile_learn.tasks import TASK_NAMES
 
 HELP = "train a task's network on a generated dataset (CPU, reproducible, resumable)"
@@ -61,5 +62,5 @@ def run(args: argparse.Namespace) -> int:
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet:
         summary = {k: result[k] for k in ("task", "size", "epochs_run", "best_epoch", "train_seconds", "val_metrics")}
-        print(dumps(summary))
+        print(json_dumps(summary))
     return 0
