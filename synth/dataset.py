@@ -22,7 +22,7 @@ import os
 import platform
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -80,7 +80,12 @@ def simulate_shard(scene: Scene, seed: int, index: int, size: int) -> dict[str, 
 
 
 def _write_shard(folder: Path, scene: Scene, seed: int, index: int, size: int) -> dict[str, Any]:
-    arrays = simulate_shard(scene, seed, index, size)
+    return _store_shard(folder, index, size, simulate_shard(scene, seed, index, size))
+
+
+def _store_shard(folder: Path, index: int, size: int, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Write shard ``index``'s arrays, then its sidecar (sizes and checksums): the sidecar last, so a
+    shard whose sidecar verifies is complete."""
     name = _shard_name(index)
     files = {}
     for key, array in arrays.items():
@@ -151,12 +156,18 @@ def generate(
     workers: int = 1,
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
+    executor: Executor | None = None,
 ) -> Path:
     """Simulate ``n`` samples of ``scene`` into the folder ``out`` and return its manifest path.
 
     Resumes an interrupted run with the same arguments (finished shards are kept); refuses to
     write over a different dataset unless ``overwrite``. ``progress`` is called with the number of
     samples each finished shard adds.
+
+    ``executor`` (any :class:`concurrent.futures.Executor`, e.g. a Dask cluster's
+    ``client.get_executor()``) simulates the shards elsewhere: each worker returns its shard's
+    arrays and this process writes them, so the workers need no access to ``out`` and the bytes are
+    those of a local run (a shard depends only on scene, seed, shard size and index).
     """
     if isinstance(n, bool) or not isinstance(n, int) or n < 0:
         raise ConfigError(f"n: expected a non-negative integer, got {n!r}")
@@ -181,7 +192,14 @@ def generate(
             records[index] = record
             if progress:
                 progress(size)
-    if todo and workers > 1:
+    if todo and executor is not None:
+        futures = {executor.submit(simulate_shard, scene, seed, i, sizes[i]): i for i in todo}
+        for future in as_completed(futures):
+            index = futures[future]
+            records[index] = _store_shard(folder, index, sizes[index], future.result())
+            if progress:
+                progress(sizes[index])
+    elif todo and workers > 1:
         # spawn, not fork: a forked BLAS/OpenMP pool can deadlock, and spawn behaves alike on every OS
         with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=get_context("spawn")) as pool:
             futures = {pool.submit(_write_shard, folder, scene, seed, i, sizes[i]): i for i in todo}
