@@ -119,9 +119,9 @@ def parse_scene(data: dict[str, Any], source: str = "<scene>") -> Scene:
     return Scene(name=name, task=task, sensor=sensor, outputs=outputs, noise=noise, description=description)
 
 
-def shipped_names(folder: str) -> list[str]:
-    """Names of the TOML files shipped in the package folder ``synth/<folder>``."""
-    files = resources.files("synth") / folder
+def shipped_names(folder: str, package: str = "synth") -> list[str]:
+    """Names of the TOML files shipped in the package folder ``<package>/<folder>``."""
+    files = resources.files(package) / folder
     return sorted(p.name[:-5] for p in files.iterdir() if p.name.endswith(".toml"))
 
 
@@ -130,8 +130,8 @@ def available_scenes() -> list[str]:
     return shipped_names("scenes")
 
 
-def read_toml(name_or_path: str | Path, folder: str, what: str) -> tuple[dict[str, Any], str]:
-    """The parsed TOML of a file path, or of a shipped ``synth/<folder>/<name>.toml``, and its name
+def read_toml(name_or_path: str | Path, folder: str, what: str, package: str = "synth") -> tuple[dict[str, Any], str]:
+    """The parsed TOML of a file path, or of a shipped ``<package>/<folder>/<name>.toml``, and its name
     for error messages; ``what`` ("scene", "suite") names the kind in those messages."""
     text: str
     source = str(name_or_path)
@@ -144,9 +144,10 @@ def read_toml(name_or_path: str | Path, folder: str, what: str) -> tuple[dict[st
         except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{what} file {source} cannot be read: {exc}") from None
     else:
-        shipped = resources.files("synth") / folder / f"{source}.toml"
+        shipped = resources.files(package) / folder / f"{source}.toml"
         if not shipped.is_file():
-            raise ConfigError(f"unknown {what} {source!r} (shipped {what}s: {', '.join(shipped_names(folder))})")
+            names = ", ".join(shipped_names(folder, package))
+            raise ConfigError(f"unknown {what} {source!r} (shipped {what}s: {names})")
         text = shipped.read_text(encoding="utf-8")
         source = f"{source}.toml"
     try:

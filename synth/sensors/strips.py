@@ -178,7 +178,7 @@ class StripArray:
     def _tables(self, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Operators cut into every ``size``-long run of padded positions, cached per window size.
 
-        Returns the y-table (positions, 2R+1, N, size) holding row-layer, column-layer and
+        Returns the y-table (positions, R_row + R_col + 1, N, size) holding row-layer, column-layer and
         cell-mean operators, and the x-tables (positions, R*size, M) of each layer and the cells.
         """
         cached = self._table_cache.get(size)
@@ -210,11 +210,12 @@ class StripArray:
         if (iy < 0).any() or (iy >= len(ty)).any() or (ix < 0).any() or (ix >= len(trow)).any():
             raise ValueError("a contact window reaches beyond the padded lattice (pad too small)")
         c = len(iy)
-        rank = self.row_y.shape[0]
+        # the row and column layers lie at different depths: their kernels may need different ranks
+        r_row, r_col = self.row_y.shape[0], self.col_y.shape[0]
         n = self.n_rows
         vals = windows.values.astype(np.float32)
-        gy = ty[iy]  # (c, 2R+1, N, size)
-        first = (gy.reshape(c, -1, size) @ vals).reshape(c, 2 * rank + 1, n, size)
+        gy = ty[iy]  # (c, R_row + R_col + 1, N, size)
+        first = (gy.reshape(c, -1, size) @ vals).reshape(c, r_row + r_col + 1, n, size)
         out: dict[str, np.ndarray] = {}
 
         def finish(part: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -222,10 +223,10 @@ class StripArray:
             return flat @ table[ix]
 
         if stress:
-            out["row"] = finish(first[:, :rank], trow)
-            out["col"] = finish(first[:, rank : 2 * rank], tcol)
+            out["row"] = finish(first[:, :r_row], trow)
+            out["col"] = finish(first[:, r_row : r_row + r_col], tcol)
         if cells:
-            out["cells"] = finish(first[:, 2 * rank :], tcell)
+            out["cells"] = finish(first[:, r_row + r_col :], tcell)
         return out
 
 

@@ -18,7 +18,7 @@ from synth.errors import TactileError
 
 __all__ = ["main"]
 
-SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "bench", "calibrate", "scenes", "demo")
+SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "bench", "calibrate", "scenes", "sweep", "demo")
 
 
 def build_parser() -> argparse.ArgumentParser:
