@@ -18,7 +18,19 @@ from synth.errors import TactileError
 
 __all__ = ["main"]
 
-SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "bench", "calibrate", "scenes", "demo")
+SUBCOMMANDS = (
+    "generate",
+    "simulate",
+    "eval",
+    "train",
+    "export",
+    "bench",
+    "calibrate",
+    "adapt",
+    "scenes",
+    "materials",
+    "demo",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
