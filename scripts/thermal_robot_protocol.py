@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -151,7 +152,8 @@ def main(argv: list[str] | None = None) -> int:
         for session in args.label.split(","):
             results.append(run_session(data, session.strip(), work, args))
     summary = {
-        "command": "python scripts/thermal_robot_protocol.py " + " ".join(argv or []),
+        "command": "python scripts/thermal_robot_protocol.py "
+        + " ".join(a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("/")),
         "durations_s": list(DURATIONS),
         "sessions": results,
     }

@@ -172,24 +172,31 @@ def scene_from_fit(
     has_passive = "passive.heat_capacity_j_m2k" in v
     lead = v["contact.lead_s"]
     off = v.get("heater.off_after_onset_s")
-    switch_off = off is not None and off < 1.4  # at its upper bound: the data show no switch-off
     heated_start = [r["heated_onset_c"] for r in rows]
     ambient_values = [r["passive_onset_c"] for r in rows] if has_passive else [v.get("heater.ambient_c", 22.0)]
     ambient = _span(ambient_values, 0.5)
     g = v["heated.loss_w_m2k"]
     set_point = _span(heated_start, 0.15)
+    steps = [0.0]
+    if off is not None:  # the fitted change of heater power at t_off, per touch: -(G (R0 + r lead - T_amb) + C r)
+        lags = v["heated.lag_s"] + v["heated.lag2_s"]
+        steps = [
+            -(g * (r["heated_onset_c"] + r["heated_drift_k_s"] * lags - v["heater.ambient_c"]))
+            - v["heated.heat_capacity_j_m2k"] * r["heated_drift_k_s"]
+            for r in rows
+        ]
     sensor = SensorConfig(
         heat_capacity_j_m2k=_around(v["heated.heat_capacity_j_m2k"], 0.05),
         loss_w_m2k=_around(g, 0.15, 1e-3),
-        # open loop: the heater's power puts the sensor at the set point above the ambient
         heater_w_m2=_around(max(g * (float(np.mean(heated_start)) - float(np.mean(ambient_values))), 1e-3), 0.2, 1e-3),
         pixel_spread=0.0,
         ambient_c=ambient,
         lag_s=_around(v["heated.lag_s"], 0.15),
         lag2_s=_around(v["heated.lag2_s"], 0.15),
-        heater="off" if switch_off else "constant",
+        heater="step" if off is not None else "constant",
         set_point_c=set_point,
-        heater_off_s=_span([lead + (off or 0.0)], 0.3) if switch_off else (0.0, 0.0),
+        heater_off_s=_span([lead + off], 0.3) if off is not None else (0.0, 0.0),
+        heater_step_w_m2=(min(steps) - 0.2 * abs(min(steps)), max(steps) + 0.2 * abs(max(steps))),
         drift_k_s=_span([r["heated_drift_k_s"] for r in rows], 0.02),
     )
     # the touches' own spread (each refitted alone for its contact), widened by a fifth

@@ -119,7 +119,8 @@ class SensorConfig:
         hi=1e6,
         unit="W/m^2",
         ordered=True,
-        doc="heater output Q; the sensor's steady excess over ambient is Q / G",
+        doc="heater output Q; the sensor's steady excess over ambient is Q / G (heater 'off': its power "
+        "when it switches off)",
     )
     pixel_spread: float = param(0.02, lo=0.0, hi=0.3, doc="relative s.d. of heat capacity and loss per pixel")
     ambient_c: tuple[float, float] = param((18.0, 28.0), lo=-50.0, hi=100.0, unit="degC", ordered=True)
@@ -131,12 +132,16 @@ class SensorConfig:
     lag2_s: tuple[float, float] = param(
         (0.0, 0.0), lo=0.0, hi=100.0, unit="s", ordered=True, omit_default=True, doc="second thermistor lag tau_2"
     )
-    heater: Literal["open", "constant", "held", "off"] = param(
+    heater: Literal["open", "constant", "held", "off", "step"] = param(
         "open",
         omit_default=True,
         doc="open: constant power Q, the sensor at ambient + Q/G before contact (the seed's); constant: held at "
         "set_point_c before contact, then the heater keeps its power; held: a PI controller holds the reading at "
-        "set_point_c; off: held at set_point_c until heater_off_s after the onset, then switched off",
+        "set_point_c; off: held at set_point_c until heater_off_s after the onset, then switched off; step: its "
+        "power changes by heater_step_w_m2 at heater_off_s (a rig that reacts to the press)",
+    )
+    heater_step_w_m2: tuple[float, float] = param(
+        (0.0, 0.0), lo=-1e6, hi=1e6, unit="W/m^2", ordered=True, omit_default=True, doc="step: the power change"
     )
     set_point_c: tuple[float, float] = param(
         (30.0, 30.0),

@@ -24,7 +24,12 @@ and partial fractions over the simple roots ``p`` of ``D*`` give
 
     r(t) = sum_p  N(p) / D*'(p) * phi(p, t),   phi(p, t) = (erfcx(-p sqrt t) - 1) / p,
 
-the same closed form as the seed's case (:func:`synth.sensors.thermal.phi`). A stable channel has
+the same closed form as the seed's case (:func:`synth.sensors.thermal.phi`). The same denominator
+serves a heater power step ``dQ`` (numerator ``H + Z``: ``R = dQ (H + Z) / (q^2 D*)``), a reading
+that drifted at ``r`` before contact (a net heating ``C r`` that goes on, plus the lag chain's own
+decay of its lead ``r (tau_1 + tau_2)``) and a contact that builds up over ``ramp`` seconds (the
+average of step contacts starting in ``[0, ramp]``: ``(Psi(t) - Psi(t - ramp)) / ramp`` with
+``Psi`` the closed-form time integral :func:`phi_integral`): :func:`channel_terms`. A stable channel has
 no pole ``s = p^2`` with ``Re s >= 0``: roots with ``Re p <= 0`` are not poles at all, and roots
 with ``Re p > 0`` are poles that decay when ``|Re p| < |Im p|``. The lag's roots ``q = +-i /
 sqrt(tau)`` lie on the imaginary axis, where ``erfcx`` is bounded (Faddeeva's ``w`` on the real

@@ -12,7 +12,8 @@ Every one of these is a term of the closed form of :func:`synth.sensors.thermal_
     passive = P0 + r_p drift_p(t) + (P0 + r_p (tau_1p + tau_2p) - T_obj) obj_p(t),   r_p = drift + approach (T_obj - P0)
 
 ``R0`` is the heated reading before contact (``T_amb + Q/G`` open loop, the set point otherwise),
-``Q = G (R0 + r (tau_1 + tau_2) - T_amb) + C r`` the heater's power when it switches off, ``P0 =
+``Q`` the heater's power when it switches off (``heater_w_m2``, heater ``off``; heater ``step``:
+``-Q`` is ``heater_step_w_m2``, a change of either sign), ``P0 =
 T_amb + offset`` the passive reading; both channels share the object's temperature ``T_obj`` and
 the contact's onset and build-up ``ramp_s``. Time-stamp jitter ``dt ~ N(0, timing_jitter_s)`` moves
 each sample by ``slope * dt``. The touch lasts to the end of the record (release is not modelled
@@ -52,6 +53,7 @@ def draw_dynamics(config: ThermalConfig, n: int, p: int, rng: np.random.Generato
         "kp": np.broadcast_to(uni(sc.controller_kp, (n, 1)), (n, p)).copy(),
         "ki": np.broadcast_to(uni(sc.controller_ki, (n, 1)), (n, p)).copy(),
         "heater_off": np.broadcast_to(uni(sc.heater_off_s, (n, 1)), (n, p)).copy(),
+        "heater_step": np.broadcast_to(uni(sc.heater_step_w_m2, (n, 1)), (n, p)).copy(),
         "drift": np.broadcast_to(uni(sc.drift_k_s, (n, 1)), (n, p)).copy(),
         "ramp": np.broadcast_to(uni(cc.ramp_s, (n, 1)), (n, p)).copy(),
     }
@@ -104,7 +106,7 @@ def clean_channels(
         kp=d["kp"][sel],
         ki=d["ki"][sel],
     )
-    t_off = d["heater_off"][sel] if sc.heater == "off" else None
+    t_off = d["heater_off"][sel] if sc.heater in ("off", "step") else None
     terms = channel_terms(model, t_sel, d["ramp"][sel], t_off)
     r0, r, obj_c = start[sel], drift[sel], d["object_c"][sel]
     v0 = r0 + r * (lag1 + lag2) - obj_c
@@ -112,9 +114,9 @@ def clean_channels(
         curve = r0[:, None] + v0[:, None] * terms.obj
     else:
         curve = r0[:, None] + r[:, None] * terms.drift + v0[:, None] * terms.obj
-    if terms.power is not None:
-        q = d["loss"][sel] * (v0 + obj_c - ambient[sel]) + d["heat_capacity"][sel] * r
-        curve -= q[:, None] * terms.power
+    if terms.power is not None:  # at t_off the heater's power drops to 0 (off) or changes (step)
+        change = -d["heater"][sel] if sc.heater == "off" else d["heater_step"][sel]
+        curve += change[:, None] * terms.power
     heated[sel] = curve
     if passive is not None:
         p_model = ChannelModel.create(

@@ -1,31 +1,37 @@
-"""The thermal fingertip task (issue 4): one pixel's temperature curve -> material.
+"""The thermal fingertip task (issues 4 and 11): temperature curves -> material or class.
 
 Input ``readings`` (B, W): one thermistor's temperatures (degC) over the last ``W = window_s * fs``
 samples, ending "now"; the contact onset is somewhere inside (the 4 x 4 array is classified pixel
-by pixel: every pixel's curve is one row). Output ``probabilities`` (B, K + 1): the scene's K
-materials, then ``none`` (the pixel touches nothing).
+by pixel: every pixel's curve is one row). A scene whose ``channels`` also name the passive
+thermistor takes (B, 2, W): heated, then passive, over the same samples. Output
+``probabilities`` (B, K + 1): the scene's K classes (its user classes, e.g. metal and wood, else
+its materials), then ``none`` (the pixel touches nothing).
 
-Views by contact duration. A generated touch keeps its whole record (``readings`` (P, R)) and its
-onset; the view at duration ``d`` is the window that ends at the last sample with
-``t <= onset + d`` (padded on the left with the record's first sample if the record starts later
-than the window). :meth:`ThermalTask.evaluate` predicts every view ``d`` in :data:`DURATIONS_S`:
+Views by contact duration. A generated touch keeps its whole record (``readings`` (P, R), and
+``passive``) and its onset; the view at duration ``d`` is the window that ends at the last sample
+with ``t <= onset + d`` (padded on the left with the record's first sample if the record starts
+later than the window); a view exists while the record, and the contact when its release is known,
+lasts. :meth:`ThermalTask.evaluate` predicts every view ``d`` in :data:`DURATIONS_S` (or the
+``durations`` it is given):
 
-- ``accuracy``: material accuracy over pixels in contact, pooled over the four views;
+- ``accuracy``: class accuracy over pixels in contact, pooled over the views;
 - ``accuracy_by_duration``, ``family_accuracy_by_duration``, ``contact_accuracy_by_duration``
-  (keys ``"0.25"``, ``"0.5"``, ``"1.0"``, ``"2.0"``); family = metal, stone/glass, polymer, wood,
-  foam; contact accuracy = touching vs ``none`` over every pixel;
-- ``confusion_pairs``: the most frequent (true, predicted) material errors pooled over the views,
-  with their nominal effusivities;
-- ``per_material_accuracy``: at 1 s.
+  (keys ``"0.25"``, ``"0.5"``, ``"1.0"``, ``"2.0"``, ``"4.0"``); family = metal, stone/glass,
+  polymer, wood, foam; contact accuracy = touching vs ``none`` over every pixel;
+- ``confusion_pairs``: the most frequent (true, predicted) errors pooled over the views, with their
+  nominal effusivities;
+- ``per_material_accuracy``: per class at 1 s;
+- ``by_group`` (with ``group_by``): all of the above per value of a touches.csv column.
 
 The oracle (the physics fit given each pixel's true sensor parameters) is not an estimator (it
 needs the truth): :func:`oracle_accuracy_by_duration` computes ``oracle_accuracy_by_duration`` for
 the same data; ``eval``/``bench`` call it and add the key beside the method's metrics.
 
 Evaluation data: a generated dataset folder, an ``.npz`` (``readings`` (B, R) or (B, P, R) in
-degC at the scene's rate, labels ``latent_material`` (int index, -1 = none) or ``material``
-(names), optional ``latent_onset_s``/``onset_s``), or a recording directory
-(:mod:`tactile_learn.thermal_recordings`).
+degC at the scene's rate, ``passive`` alike when the scene reads it, labels ``latent_material``
+(int index, -1 = none) or ``material`` (names), optional ``latent_onset_s``/``onset_s``), or a
+recording directory (:mod:`tactile_learn.thermal_recordings`: the onset from touches.csv, else the
+force column's half-plateau crossing, else the heated curve's departure).
 """
 
 from __future__ import annotations

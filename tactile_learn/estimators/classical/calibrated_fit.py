@@ -74,7 +74,7 @@ class CalibratedFitEstimator(Estimator):
         ramps = np.linspace(*cc.ramp_s, self.n_ramp)
         radius = _mid(cc.radius_mm) * 1e-3
         columns, owner = [], []
-        heater_off = sc.heater == "off"
+        heater_off = sc.heater in ("off", "step")
         for k in range(len(cfg.class_names)):
             members = [m for m, c in zip(mats, of, strict=True) if c == k]
             e = math.exp(float(np.mean([math.log(m.effusivity) for m in members])))
@@ -110,10 +110,12 @@ class CalibratedFitEstimator(Estimator):
                         lead = lags[0] + lags[1]
                         drift = terms.drift[0] if sc.heater != "held" or channel != "heated" else 0.0 * t
                         cols = [1.0 + terms.obj[0], drift + lead * terms.obj[0], -terms.obj[0], 0.0 * t]
-                        if terms.power is not None:  # Q = G (R0 + r lead - T_amb) + C r
+                        if terms.power is not None and sc.heater == "off":  # Q = G (R0 + r lead - T_amb) + C r
                             cols[0] = cols[0] - loss * terms.power[0]
                             cols[1] = cols[1] - (loss * lead + cap) * terms.power[0]
                             cols[3] = loss * terms.power[0]
+                        elif terms.power is not None:  # step: the power change is a free amplitude
+                            cols[3] = terms.power[0]
                         per_channel.append(np.stack(cols, axis=-1))
                     columns.append(np.stack(per_channel))
                     owner.append(k)
@@ -140,7 +142,7 @@ class CalibratedFitEstimator(Estimator):
         sigma = max(cfg.readout.noise_k, MODEL_ERROR_K)
         k = len(cfg.class_names)
         best = np.full((b, k), np.inf)
-        heater_off = cfg.sensor.heater == "off"
+        heater_off = cfg.sensor.heater in ("off", "step")
         n_lin = 2 * n_ch + 1 + (1 if heater_off else 0)
         y = x.reshape(b, n_ch * w)
         step = max(1, round(STEP_S * fs))
