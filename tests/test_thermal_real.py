@@ -288,3 +288,28 @@ def test_adapt_end_to_end_writes_a_model_with_its_calibration(tmp_path: Path) ->
     assert model.predict(data.inputs).shape == (6, 3)  # metal, wood, none
     # the output folder is never overwritten
     assert main([*args, "--channels", "all"]) == 2
+
+
+def test_heater_modes_change_the_reading_by_the_power_step_alone() -> None:
+    """Same touches, heater 'constant' against 'step' (+2000 W/m^2 at 1 s) and 'off' (4000 W/m^2 cut
+    at 1 s): identical before the change, then apart by the power-step term (a heater that heats
+    more warms the sensor, one switched off lets it cool)."""
+    base = dataclasses.replace(robot_scene(), noise=False)
+    runs = {}
+    for mode, extra in (
+        ("constant", {}),
+        ("step", {"sensor.heater_step_w_m2": [2000.0, 2000.0], "sensor.heater_off_s": [1.0, 1.0]}),
+        ("off", {"sensor.heater_w_m2": [4000.0, 4000.0], "sensor.heater_off_s": [1.0, 1.0]}),
+    ):
+        config = replace(base.sensor, "sensor.heater", mode)  # type: ignore[attr-defined]
+        for key, value in extra.items():
+            config = replace(config, key, value)
+        scene = dataclasses.replace(base, sensor=config)  # type: ignore[type-var]
+        runs[mode] = make_simulator(scene).simulate(3, np.random.default_rng(8))
+    onset = runs["constant"]["latent_onset_s"][:, 0]
+    t = np.arange(800) / 100.0
+    before = t[None, :] < onset[:, None] + 1.0
+    for mode, sign in (("step", 1.0), ("off", -1.0)):
+        diff = runs[mode]["readings"][:, 0] - runs["constant"]["readings"][:, 0]
+        assert np.abs(diff[before]).max() < 1e-5
+        assert (sign * diff[:, -1] > 0.1).all()
