@@ -179,7 +179,8 @@ def _label(
     if len(resolved) != 1:
         raise DataError(
             f"{where}: {label!r} names {len(resolved)} materials; this scene classifies single materials "
-            f"({', '.join(materials)}): label touches by material, or give classes (adapt --classes)"
+            f"({', '.join(materials)}): evaluate with a scene that has classes (--scene CALIBRATED.toml, "
+            "from calibrate or adapt), or label touches by material"
         )
     allowed = set(materials)
     if resolved[0].name not in allowed:
