@@ -178,22 +178,29 @@ def from_dict(cls: type[T], data: Mapping[str, Any], path: str = "") -> T:
     return obj
 
 
-def to_dict(obj: Any) -> Any:
-    """Plain JSON/TOML-ready structure of a config object (tuples become lists)."""
+def _default(fld: dataclasses.Field[Any]) -> Any:
+    if fld.default_factory is not dataclasses.MISSING:
+        return fld.default_factory()
+    return fld.default
+
+
+def to_dict(obj: Any, full: bool = False) -> Any:
+    """Plain JSON/TOML-ready structure of a config object (tuples become lists). Fields declared
+    with ``omit_default`` are left out while they hold their default, unless ``full``."""
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {
-            f.name: to_dict(getattr(obj, f.name))
+            f.name: to_dict(getattr(obj, f.name), full)
             for f in dataclasses.fields(obj)
-            if not (f.metadata.get("omit_default") and getattr(obj, f.name) == f.default)
+            if full or not (f.metadata.get("omit_default") and getattr(obj, f.name) == _default(f))
         }
     if isinstance(obj, (list, tuple)):
-        return [to_dict(v) for v in obj]
+        return [to_dict(v, full) for v in obj]
     return obj
 
 
 def replace(obj: T, path: str, value: Any) -> T:
     """Return a copy of the config ``obj`` with the dotted ``path`` set to ``value``, validated."""
-    data = to_dict(obj)
+    data = to_dict(obj, full=True)
     node = data
     target: Any = obj
     keys = path.split(".")

@@ -30,9 +30,12 @@ __all__ = [
     "Material",
     "MaterialSample",
     "effusivity_range",
+    "family_materials",
     "get_material",
     "library",
+    "load_class_map",
     "material_names",
+    "resolve_label",
     "resolve_materials",
     "sample_properties",
 ]
@@ -119,6 +122,71 @@ def get_material(name: str) -> Material:
         if material.name == key:
             return material
     raise ConfigError(f"unknown material {name!r} (library: {', '.join(material_names())})")
+
+
+def family_materials(family: str) -> tuple[Material, ...]:
+    """Every library material of ``family`` (one of :data:`FAMILIES`, case-insensitive)."""
+    key = family.strip().lower()
+    if key not in FAMILIES:
+        raise ConfigError(f"unknown material family {family!r} (families: {', '.join(FAMILIES)})")
+    return tuple(m for m in library() if m.family == key)
+
+
+def accepted_labels(class_map: dict[str, tuple[str, ...]] | None = None) -> str:
+    """What a label may be, for error messages."""
+    mapped = f"; your classes: {', '.join(class_map)}" if class_map else ""
+    return f"materials: {', '.join(material_names())}; families: {', '.join(FAMILIES)}{mapped}"
+
+
+def resolve_label(label: str, class_map: dict[str, tuple[str, ...]] | None = None) -> tuple[Material, ...]:
+    """The library materials a touch label stands for: a class of ``class_map`` (its entries are
+    materials or families), a library material, or a family (all its materials). An unknown label
+    is a :class:`ConfigError` that lists what is accepted."""
+    key = label.strip()
+    if class_map and key in class_map:
+        out: list[Material] = []
+        for entry in class_map[key]:
+            for m in resolve_label(entry):
+                if m not in out:
+                    out.append(m)
+        return tuple(out)
+    try:
+        return (get_material(key),)
+    except ConfigError:
+        pass
+    if key.lower() in FAMILIES:
+        return family_materials(key)
+    raise ConfigError(f"unknown label {label!r} (accepted: {accepted_labels(class_map)})")
+
+
+def load_class_map(path: str) -> dict[str, tuple[str, ...]]:
+    """User classes from a TOML file: a ``[classes]`` table of ``name = ["material or family", ...]``;
+    every entry must resolve (a :class:`ConfigError` names the file and the entry otherwise)."""
+    from pathlib import Path
+
+    source = Path(path)
+    try:
+        data = tomllib.loads(source.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{source}: cannot be read ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+    table = data.get("classes")
+    if not isinstance(table, dict) or not table:
+        raise ConfigError(f'{source}: expected a [classes] table, e.g. metal = ["aluminium"], wood = ["wood"]')
+    out: dict[str, tuple[str, ...]] = {}
+    for name, entries in table.items():
+        if isinstance(entries, str):
+            entries = [entries]
+        if not isinstance(entries, list) or not entries or not all(isinstance(e, str) for e in entries):
+            raise ConfigError(f"{source}: classes.{name}: expected a list of material or family names")
+        for entry in entries:
+            try:
+                resolve_label(entry)
+            except ConfigError as exc:
+                raise ConfigError(f"{source}: classes.{name}: {exc}") from None
+        out[str(name)] = tuple(entries)
+    return out
 
 
 def resolve_materials(names: Sequence[str]) -> tuple[Material, ...]:

@@ -2,18 +2,25 @@
 
 A recording directory holds ``touches.csv`` and one CSV per touch::
 
-    touches.csv                     file,material[,onset_s][,object_c][,...any other column]
-    touch-000.csv                   time_s,temperature_c   (one row per sample, time increasing)
+    touches.csv     file,material[,onset_s][,...any other column, e.g. condition,session]
+    touch-000.csv   time_s,temperature_c[,passive_c][,force]   (one row per sample, time increasing)
 
-``file`` is the touch's CSV, relative to the directory; ``material`` a name from the material
-library (``synth.materials``; empty or ``?`` for an unlabelled touch, which calibration and
-accuracy skip); ``onset_s`` (optional) the contact onset in the touch's own time base (when absent,
-or empty, it is detected). Extra columns are kept as strings. The onset may be anywhere in the
-record; records may differ in length and sampling rate (they are resampled to the scene's rate).
+``file`` is the touch's CSV, relative to the directory; ``material`` the touch's label (empty or
+``?`` for an unlabelled touch, which calibration and accuracy skip). A label is a library material
+(``tactile-learn materials`` lists them), a material family (``metal``, ``wood``, ...: every library
+material of that family) or one of the user's own classes (a ``[classes]`` TOML mapping names to
+materials or families, see :func:`synth.materials.load_class_map`). ``onset_s`` (optional) is the
+contact onset in the touch's own time base; when absent or empty it is found from the ``force``
+column when there is one (:func:`press_onset`), else from the temperature curve. Extra columns are
+kept as strings (``eval --group-by`` breaks results down by them).
+
+Touch files: ``temperature_c`` (the heated thermistor, degC) is required; ``passive_c`` (an unheated
+thermistor on the same fingertip, degC) and ``force`` (any unit: only its shape is used) are
+optional. Records may differ in length and sampling rate (they are resampled to the scene's rate).
 
 Every problem is a :class:`~synth.errors.DataError` naming the file (and row): a missing
-``touches.csv`` or column, an unknown material, a missing, empty or non-numeric touch file, NaN,
-and time that does not strictly increase.
+``touches.csv`` or column, an unknown label (with the list of accepted ones), a missing, empty or
+non-numeric touch file, NaN, and time that does not strictly increase.
 """
 
 from __future__ import annotations
@@ -26,24 +33,42 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import median_filter
 
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
-from synth.materials import get_material
+from synth.materials import accepted_labels, resolve_label
 
-__all__ = ["INDEX", "Touch", "read_recordings", "read_touch", "resample", "write_recordings"]
+__all__ = [
+    "INDEX",
+    "OPTIONAL_COLUMNS",
+    "Touch",
+    "press_onset",
+    "read_recordings",
+    "read_touch",
+    "read_touch_columns",
+    "resample",
+    "resample_channel",
+    "select_recordings",
+    "write_recordings",
+]
 
 INDEX = "touches.csv"
 UNLABELLED = ("", "?")
+#: optional per-sample columns of a touch file, after time_s and temperature_c
+OPTIONAL_COLUMNS = ("passive_c", "force")
 #: most samples a record may have once resampled (a guard against time_s in the wrong unit)
 MAX_SAMPLES = 10_000_000
 #: DictReader key of the values in a row beyond its header's columns
 _EXTRA = "\x00extra"
+#: median filter length (s) that removes the force sensor's dropouts before the onset is read
+FORCE_FILTER_S = 0.125
 
 
 @dataclass
 class Touch:
-    """One recorded touch: its samples, label and optional onset."""
+    """One recorded touch: its samples, label and optional onset (``passive_c``, ``force``: the
+    optional channels, ``None`` when the file has none)."""
 
     file: str
     time_s: np.ndarray
@@ -51,11 +76,20 @@ class Touch:
     material: str | None = None
     onset_s: float | None = None
     info: dict[str, str] = field(default_factory=dict)
+    passive_c: np.ndarray | None = None
+    force: np.ndarray | None = None
 
     @property
     def sampling_hz(self) -> float:
         """Median sampling rate of the record."""
         return float(1.0 / np.median(np.diff(self.time_s)))  # time strictly increases: diff > 0
+
+    def channel(self, name: str) -> np.ndarray:
+        """The samples of ``temperature_c``, ``passive_c`` or ``force`` (a DataError if absent)."""
+        values = getattr(self, name, None) if name in ("temperature_c", *OPTIONAL_COLUMNS) else None
+        if values is None:
+            raise DataError(f"{self.file}: no {name} column")
+        return np.asarray(values)
 
 
 def _float(text: str, where: str) -> float:
@@ -76,8 +110,9 @@ def _read_text(path: Path) -> str:
         raise DataError(f"{path}: cannot be read ({exc})") from None
 
 
-def read_touch(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """``time_s`` and ``temperature_c`` of one touch CSV (float64), validated."""
+def read_touch_columns(path: str | Path) -> dict[str, np.ndarray]:
+    """``time_s``, ``temperature_c`` and whichever of :data:`OPTIONAL_COLUMNS` the touch CSV has
+    (float64), validated."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: touch file not found")
@@ -89,28 +124,87 @@ def read_touch(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     missing = [c for c in ("time_s", "temperature_c") if c not in header]
     if missing:
         raise DataError(f"{path}: missing column(s) {', '.join(missing)} (header: {','.join(rows[0])})")
-    it, ix = header.index("time_s"), header.index("temperature_c")
+    names = ["time_s", "temperature_c", *(c for c in OPTIONAL_COLUMNS if c in header)]
+    cols = [header.index(c) for c in names]
     if len(rows) < 3:
         raise DataError(f"{path}: needs at least 2 samples, has {len(rows) - 1}")
-    time = np.empty(len(rows) - 1)
-    temp = np.empty(len(rows) - 1)
+    values = np.empty((len(names), len(rows) - 1))
     for n, row in enumerate(rows[1:]):
         where = f"{path}: row {n + 2}"
-        if len(row) <= max(it, ix):
+        if len(row) <= max(cols):
             raise DataError(f"{where}: expected {len(header)} columns, got {len(row)}")
-        time[n] = _float(row[it].strip(), where)
-        temp[n] = _float(row[ix].strip(), where)
+        for j, c in enumerate(cols):
+            values[j, n] = _float(row[c].strip(), where)
+    time = values[0]
     with np.errstate(over="ignore"):  # a span beyond float64 is +-inf: still ordered right
         step = np.diff(time)
     if (step <= 0).any():
         bad = int(np.argmax(step <= 0)) + 3  # row number of the offending sample (header is row 1)
         raise DataError(f"{path}: row {bad}: time_s does not increase ({time[bad - 3]} then {time[bad - 2]})")
-    return time, temp
+    return dict(zip(names, values, strict=True))
 
 
-def read_recordings(path: str | Path, materials: Sequence[str] | None = None) -> list[Touch]:
-    """Every touch listed in ``path/touches.csv``. ``materials`` (names) restricts the labels
-    allowed (e.g. a scene's material list); library names are always checked."""
+def read_touch(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``time_s`` and ``temperature_c`` of one touch CSV (float64), validated."""
+    columns = read_touch_columns(path)
+    return columns["time_s"], columns["temperature_c"]
+
+
+def _label(
+    label: str,
+    where: str,
+    materials: Sequence[str] | None,
+    classes: dict[str, tuple[str, ...]] | None,
+    class_map: dict[str, tuple[str, ...]] | None,
+) -> str:
+    """The label as the caller's scene names it (see :func:`read_recordings`)."""
+    if classes is not None:
+        if label in classes:
+            return label
+        try:
+            mats = {m.name for m in resolve_label(label, class_map)}
+        except ConfigError:
+            mats = set()
+        owners = [name for name, members in classes.items() if mats and mats <= set(members)]
+        if len(owners) == 1:
+            return owners[0]
+        raise DataError(f"{where}: label {label!r} is not one of the classes {', '.join(classes)}")
+    try:
+        resolved = resolve_label(label, class_map)
+    except ConfigError:
+        kind = "material" if materials is not None else "label"
+        raise DataError(f"{where}: unknown {kind} {label!r} (accepted: {accepted_labels(class_map)})") from None
+    if materials is None:
+        return label.strip() if len(resolved) > 1 or (class_map and label.strip() in class_map) else resolved[0].name
+    if len(resolved) != 1:
+        raise DataError(
+            f"{where}: {label!r} names {len(resolved)} materials; this scene classifies single materials "
+            f"({', '.join(materials)}): evaluate with a scene that has classes (--scene CALIBRATED.toml, "
+            "from calibrate or adapt), or label touches by material"
+        )
+    allowed = set(materials)
+    if resolved[0].name not in allowed:
+        raise DataError(
+            f"{where}: material {resolved[0].name!r} is not in the scene's list ({', '.join(sorted(allowed))})"
+        )
+    return resolved[0].name
+
+
+def read_recordings(
+    path: str | Path,
+    materials: Sequence[str] | None = None,
+    *,
+    classes: dict[str, tuple[str, ...]] | None = None,
+    class_map: dict[str, tuple[str, ...]] | None = None,
+) -> list[Touch]:
+    """Every touch listed in ``path/touches.csv``.
+
+    Labels: with ``classes`` (a scene's classes: name -> library materials), a label must be a class
+    name or a material (or family) inside exactly one class, and reads back as the class name; with
+    ``materials`` (a scene's material list), a label must be one of those materials; with neither,
+    any label :func:`synth.materials.resolve_label` accepts (``class_map``: the user's classes) is
+    kept (a single material by its library name, a family or class by its own name).
+    """
     folder = Path(path)
     index = folder / INDEX
     if not folder.is_dir():
@@ -127,7 +221,6 @@ def read_recordings(path: str | Path, materials: Sequence[str] | None = None) ->
         raise DataError(
             f"{index}: missing column(s) {', '.join(missing)} (header: {','.join(reader.fieldnames or [])})"
         )
-    allowed = None if materials is None else {get_material(m).name for m in materials}
     touches: list[Touch] = []
     for n, raw in enumerate(reader):
         row = {(k or "").strip().lower(): (v or "").strip() for k, v in raw.items() if k != _EXTRA}
@@ -137,20 +230,22 @@ def read_recordings(path: str | Path, materials: Sequence[str] | None = None) ->
         if not row.get("file"):
             raise DataError(f"{where}: empty file name")
         label = row.get("material", "")
-        material = None
-        if label not in UNLABELLED:
-            try:
-                material = get_material(label).name
-            except ConfigError:
-                raise DataError(f"{where}: unknown material {label!r}") from None
-            if allowed is not None and material not in allowed:
-                raise DataError(
-                    f"{where}: material {material!r} is not in the scene's list ({', '.join(sorted(allowed))})"
-                )
+        material = None if label in UNLABELLED else _label(label, where, materials, classes, class_map)
         onset = _float(row["onset_s"], f"{where}: onset_s") if row.get("onset_s") else None
-        time, temp = read_touch(folder / row["file"])
+        columns = read_touch_columns(folder / row["file"])
         info = {k: v for k, v in row.items() if k not in ("file", "material", "onset_s")}
-        touches.append(Touch(row["file"], time, temp, material, onset, info))
+        touches.append(
+            Touch(
+                row["file"],
+                columns["time_s"],
+                columns["temperature_c"],
+                material,
+                onset,
+                info,
+                passive_c=columns.get("passive_c"),
+                force=columns.get("force"),
+            )
+        )
     if not touches:
         raise DataError(f"{index}: lists no touches")
     return touches
@@ -167,10 +262,12 @@ def write_recordings(path: str | Path, touches: Iterable[Touch]) -> Path:
     has_onset = any(t.onset_s is not None for t in touches)
     writer.writerow(["file", "material", *(["onset_s"] if has_onset else []), *extra])
     for t in touches:
+        optional = [(c, getattr(t, c)) for c in OPTIONAL_COLUMNS if getattr(t, c) is not None]
         body = io.StringIO()
-        body.write("time_s,temperature_c\n")
-        for a, b in zip(t.time_s, t.temperature_c, strict=True):
-            body.write(f"{float(a)!r},{b:.5f}\n")  # time to the float: any rate reads back
+        body.write(",".join(["time_s", "temperature_c", *(c for c, _ in optional)]) + "\n")
+        for i, (a, b) in enumerate(zip(t.time_s, t.temperature_c, strict=True)):
+            more = "".join(f",{float(v[i]):.5f}" for _, v in optional)
+            body.write(f"{float(a)!r},{b:.5f}{more}\n")  # time to the float: any rate reads back
         atomic_write_text(folder / t.file, body.getvalue())
         onset = [] if not has_onset else ["" if t.onset_s is None else f"{t.onset_s:.6f}"]
         writer.writerow([t.file, t.material or "", *onset, *(t.info.get(k, "") for k in extra)])
@@ -178,9 +275,35 @@ def write_recordings(path: str | Path, touches: Iterable[Touch]) -> Path:
     return folder / INDEX
 
 
-def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
-    """The touch on a uniform grid at ``fs`` Hz from its first sample (linear interpolation), and
-    its onset in samples of that grid (``None`` when unknown)."""
+def select_recordings(
+    source: str | Path, out: str | Path, column: str, values: Sequence[str], keep: bool = True
+) -> Path:
+    """A recording folder ``out`` whose touches.csv lists the touches of ``source`` whose ``column``
+    is (``keep``) or is not (not ``keep``) one of ``values`` (e.g. one session as the labelled set,
+    the rest as the test set). The touch files stay where they are: the new index names them by
+    their absolute path (``out`` is a working folder, never a project file)."""
+    folder, target = Path(source), Path(out)
+    index = folder / INDEX
+    if not index.is_file():
+        raise DataError(f"{folder}: no {INDEX}")
+    reader = csv.DictReader(io.StringIO(_read_text(index)))
+    fields = reader.fieldnames or []
+    if column not in fields:
+        raise DataError(f"{index}: no column {column!r} (columns: {', '.join(fields)})")
+    rows = [r for r in reader if (r[column] in values) == keep]
+    if not rows:
+        raise DataError(f"{index}: no touch with {column} {'in' if keep else 'outside'} {', '.join(values)}")
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({**r, "file": str((folder / r["file"]).resolve())})
+    target.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(target / INDEX, text.getvalue())
+    return target
+
+
+def _grid(touch: Touch, fs: float) -> np.ndarray:
     t0, t1 = float(touch.time_s[0]), float(touch.time_s[-1])
     span = (t1 - t0) * fs
     if not span < MAX_SAMPLES:  # also catches an infinite span
@@ -188,7 +311,52 @@ def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
             f"{touch.file}: time_s spans {t1 - t0:g} s, over {MAX_SAMPLES} samples at {fs:g} Hz (is time_s in seconds?)"
         )
     n = math.floor(span + 1e-9) + 1
-    grid = t0 + np.arange(n) / fs
-    values = np.interp(grid, touch.time_s, touch.temperature_c)
-    onset = None if touch.onset_s is None else (touch.onset_s - t0) * fs
+    return t0 + np.arange(n) / fs
+
+
+def resample_channel(touch: Touch, name: str, fs: float) -> np.ndarray:
+    """Channel ``name`` of the touch on a uniform grid at ``fs`` Hz from its first sample."""
+    return np.interp(_grid(touch, fs), touch.time_s, touch.channel(name))
+
+
+def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
+    """The heated channel on a uniform grid at ``fs`` Hz from its first sample (linear
+    interpolation), and its onset in samples of that grid (``None`` when unknown)."""
+    values = resample_channel(touch, "temperature_c", fs)
+    onset = None if touch.onset_s is None else (touch.onset_s - float(touch.time_s[0])) * fs
     return values, onset
+
+
+def press_onset(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> float | None:
+    """The contact onset read from a force record: the time the press crosses half its plateau.
+
+    A median filter of ``filter_s`` removes dropouts (a force sensor with a dead band reads 0, then
+    jumps to its first level, and may toggle between them while the contact builds up); the plateau
+    is the median of the filtered force where it exceeds a quarter of its maximum; the onset is the
+    first crossing of half the plateau, interpolated between samples. Why half the plateau and not
+    the first touch: the first touch hides in the dead band and the dropouts (some records start
+    already in light contact), while the middle of the rise is where the force changes fastest, so
+    its time is the least sensitive to noise, and it is unit-free (the force may be in any unit).
+    Thermal contact starts a little earlier (at the first touch: up to ~1 s for a slow press).
+    Returns ``None`` when the record holds no press (no positive force) or starts above half the
+    plateau (the onset is before the record).
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    f = np.asarray(force, dtype=np.float64)
+    if len(t) < 3:
+        return None
+    fs = 1.0 / float(np.median(np.diff(t)))
+    size = max(1, round(filter_s * fs)) | 1  # odd: centred
+    smooth = median_filter(f, size=size, mode="nearest")
+    top = float(smooth.max())
+    if not top > 0:
+        return None
+    plateau = float(np.median(smooth[smooth >= 0.25 * top]))
+    level = 0.5 * plateau
+    above = smooth >= level
+    i = int(np.argmax(above))
+    if i == 0:
+        return None
+    lo, hi = smooth[i - 1], smooth[i]
+    frac = (level - lo) / (hi - lo) if hi > lo else 1.0  # hi >= level > lo
+    return float(t[i - 1] + frac * (t[i] - t[i - 1]))

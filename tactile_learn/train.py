@@ -70,7 +70,9 @@ class TrainConfig:
 def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
     task = get_task(config.task)
     if config.val:
-        data = task.load_eval_data(config.val)
+        # data without a scene of its own (recordings, an .npz) is read with the training scene
+        own_scene = (Path(config.val) / "manifest.json").is_file()
+        data = task.load_eval_data(config.val, None if own_scene else train_set.scene)
         if data.scene.digest != train_set.scene.digest:
             # a validation set of another scene would early-stop on the wrong physics
             raise DataError(
@@ -116,7 +118,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     scene = train_set.scene
     if scene.task != config.task:
         raise DataError(f"{config.data}: dataset is for task {scene.task!r}, not {config.task!r}")
-    missing = [k for k in task.train_keys if k not in train_set.keys]
+    keys = list(task.train_keys_for(scene))
+    missing = [k for k in keys if k not in train_set.keys]
     if missing:
         raise DataError(
             f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)"
@@ -130,7 +133,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     out.mkdir(parents=True, exist_ok=True)
 
     torch.manual_seed(config.seed)
-    stats = task.fit_stats(train_set.arrays(list(task.train_keys), limit=task.stats_limit), scene)
+    stats = task.fit_stats(train_set.arrays(keys, limit=task.stats_limit), scene)
     init = _read_init(config.init, size) if config.init else None
     if init is not None:
         stats = dict(init["stats"])  # a fine-tuned network keeps its normalisation
@@ -180,9 +183,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         net.train()
         losses = []
         with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
-            for i, arrays in enumerate(
-                train_set.iter_batches(list(task.train_keys), config.batch_size, rng=rng, drop_last=True)
-            ):
+            for i, arrays in enumerate(train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)):
                 if i >= batches_per_epoch:
                     break
                 x, targets = task.training_batch(arrays, scene, rng)

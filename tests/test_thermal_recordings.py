@@ -116,7 +116,9 @@ def test_eval_on_recordings_detects_onsets_and_skips_unlabelled(tmp_path: Path) 
         else:  # detected: within a few samples of the truth
             assert abs(data.extra["onset_s"][i] - truth) <= 3.0 / fs
     m = TASK.evaluate(TASK.classical_methods()["physics_fit"](WNS), data)
-    assert set(m["accuracy_by_duration"]) == {"0.25", "0.5", "1.0", "2.0"}
+    # the default views (0.25 to 4 s of contact); 4 s only where the record reaches that far
+    assert set(m["accuracy_by_duration"]) <= {"0.25", "0.5", "1.0", "2.0", "4.0"}
+    assert {"0.25", "0.5", "1.0", "2.0"} <= set(m["accuracy_by_duration"])
     assert m["n_contact_by_duration"]["1.0"] == 5
     assert data.inputs.shape == (6, WNS.sensor.window_samples)
 

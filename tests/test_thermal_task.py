@@ -78,8 +78,14 @@ def test_views_end_at_onset_plus_duration(wns_data: Path) -> None:
     assert len(data) == 24 * p and data.inputs.shape == (24 * p, WNS.sensor.window_samples)
     fs = WNS.sensor.readout.sampling_hz
     record, onset = data.extra["record"], data.extra["onset_s"]
+    release = data.extra["release_s"]
     for d in DURATIONS_S:
         x, valid = view(data, d)
+        # a view exists while the contact lasts (these contacts: 2.2 to 3 s)
+        assert np.array_equal(valid, onset + d <= release + 1e-9)
+        if d > 3.0:
+            assert not valid.any()
+            continue
         assert valid.all()
         end = np.floor((onset + d) * fs + 1e-9).astype(int)  # index of the window's last sample
         assert np.array_equal(x[:, -1], record[np.arange(len(record)), end])

@@ -57,13 +57,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Literal
 
 import numpy as np
 from scipy import linalg, special
 
 from synth.config import param
 from synth.errors import ConfigError, InputError
-from synth.materials import FAMILIES, Material, resolve_materials, sample_properties
+from synth.materials import FAMILIES, Material, resolve_label, resolve_materials, sample_properties
 from synth.scene import Scene
 from synth.sensors.base import ArraySpec
 
@@ -73,7 +74,9 @@ __all__ = [
     "OUTPUTS",
     "ContactConfig",
     "ContactModel",
+    "ObjectClass",
     "ObjectsConfig",
+    "PassiveConfig",
     "Readout",
     "ReadoutConfig",
     "SensorConfig",
@@ -116,10 +119,101 @@ class SensorConfig:
         hi=1e6,
         unit="W/m^2",
         ordered=True,
-        doc="heater output Q; the sensor's steady excess over ambient is Q / G",
+        doc="heater output Q; the sensor's steady excess over ambient is Q / G (heater 'off': its power "
+        "when it switches off)",
     )
     pixel_spread: float = param(0.02, lo=0.0, hi=0.3, doc="relative s.d. of heat capacity and loss per pixel")
     ambient_c: tuple[float, float] = param((18.0, 28.0), lo=-50.0, hi=100.0, unit="degC", ordered=True)
+    # a real sensor (synth.sensors.thermal_touch): every field below is left out of a scene's plain
+    # data while it holds its default, so the seed's scenes keep their digests
+    lag_s: tuple[float, float] = param(
+        (0.0, 0.0), lo=0.0, hi=100.0, unit="s", ordered=True, omit_default=True, doc="thermistor lag tau_1 (0: none)"
+    )
+    lag2_s: tuple[float, float] = param(
+        (0.0, 0.0), lo=0.0, hi=100.0, unit="s", ordered=True, omit_default=True, doc="second thermistor lag tau_2"
+    )
+    heater: Literal["open", "constant", "held", "off", "step"] = param(
+        "open",
+        omit_default=True,
+        doc="open: constant power Q, the sensor at ambient + Q/G before contact (the seed's); constant: held at "
+        "set_point_c before contact, then the heater keeps its power; held: a PI controller holds the reading at "
+        "set_point_c; off: held at set_point_c until heater_off_s after the onset, then switched off; step: its "
+        "power changes by heater_step_w_m2 at heater_off_s (a rig that reacts to the press)",
+    )
+    heater_step_w_m2: tuple[float, float] = param(
+        (0.0, 0.0), lo=-1e6, hi=1e6, unit="W/m^2", ordered=True, omit_default=True, doc="step: the power change"
+    )
+    set_point_c: tuple[float, float] = param(
+        (30.0, 30.0),
+        lo=-50.0,
+        hi=200.0,
+        unit="degC",
+        ordered=True,
+        omit_default=True,
+        doc="held/off: reading before contact",
+    )
+    controller_kp: tuple[float, float] = param(
+        (0.0, 0.0), lo=0.0, hi=1e7, unit="W/(m^2 K)", ordered=True, omit_default=True, doc="held: proportional gain"
+    )
+    controller_ki: tuple[float, float] = param(
+        (0.0, 0.0), lo=0.0, hi=1e7, unit="W/(m^2 K s)", ordered=True, omit_default=True, doc="held: integral gain"
+    )
+    heater_off_s: tuple[float, float] = param(
+        (0.0, 0.0), lo=-10.0, hi=100.0, unit="s", ordered=True, omit_default=True, doc="off: switch-off after the onset"
+    )
+    drift_k_s: tuple[float, float] = param(
+        (0.0, 0.0),
+        lo=-10.0,
+        hi=10.0,
+        unit="K/s",
+        ordered=True,
+        omit_default=True,
+        doc="drift of the reading before contact (a heater still settling); it goes on as net heating",
+    )
+
+    def __post_init__(self) -> None:
+        if self.heater == "held" and self.drift_k_s != (0.0, 0.0):
+            raise ConfigError("sensor.drift_k_s: a held sensor rests at its set point before contact (use [0.0, 0.0])")
+        if self.heater != "held" and (self.controller_kp != (0.0, 0.0) or self.controller_ki != (0.0, 0.0)):
+            raise ConfigError(f"sensor.controller_kp/ki: the heater is {self.heater!r}; gains need heater = 'held'")
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether the heated channel needs the real-sensor model (lags, control, drift)."""
+        return self.heater != "open" or max(self.lag_s) > 0 or max(self.lag2_s) > 0 or max(map(abs, self.drift_k_s)) > 0
+
+
+@dataclass(frozen=True)
+class PassiveConfig:
+    """An unheated thermistor beside each heated pixel, touching the same object
+    (:mod:`synth.sensors.thermal_touch`). Disabled by default."""
+
+    enabled: bool = param(False, doc="simulate the passive channel (output 'passive')")
+    heat_capacity_j_m2k: tuple[float, float] = param(
+        (500.0, 500.0), lo=1.0, hi=1e6, unit="J/(m^2 K)", ordered=True, doc="heat capacity per area"
+    )
+    loss_w_m2k: tuple[float, float] = param(
+        (20.0, 20.0), lo=0.0, hi=1e5, unit="W/(m^2 K)", ordered=True, doc="loss to the surroundings"
+    )
+    conductance_w_m2k: tuple[float, float] = param(
+        (300.0, 300.0), lo=1.0, hi=1e9, unit="W/(m^2 K)", ordered=True, doc="contact conductance, log-uniform"
+    )
+    lag_s: tuple[float, float] = param((0.0, 0.0), lo=0.0, hi=100.0, unit="s", ordered=True, doc="lag tau_1")
+    lag2_s: tuple[float, float] = param((0.0, 0.0), lo=0.0, hi=100.0, unit="s", ordered=True, doc="lag tau_2")
+    offset_k: tuple[float, float] = param(
+        (0.0, 0.0), lo=-50.0, hi=50.0, unit="K", ordered=True, doc="reading before contact minus ambient"
+    )
+    drift_k_s: tuple[float, float] = param(
+        (0.0, 0.0), lo=-10.0, hi=10.0, unit="K/s", ordered=True, doc="drift before contact, whatever the object"
+    )
+    approach_per_s: tuple[float, float] = param(
+        (0.0, 0.0),
+        lo=0.0,
+        hi=10.0,
+        unit="1/s",
+        ordered=True,
+        doc="approaching the object already couples to it: a further drift of this rate times (object - reading)",
+    )
 
 
 @dataclass(frozen=True)
@@ -144,6 +238,31 @@ class ContactConfig:
     contact_s: tuple[float, float] = param(
         (2.2, 3.0), lo=0.0, lo_open=True, hi=1e5, unit="s", ordered=True, doc="contact duration before release"
     )
+    ramp_s: tuple[float, float] = param(
+        (0.0, 0.0),
+        lo=0.0,
+        hi=100.0,
+        unit="s",
+        ordered=True,
+        omit_default=True,
+        doc="time the contact takes to build up",
+    )
+
+
+@dataclass(frozen=True)
+class ObjectClass:
+    """A user class: a name and the library materials (or families) it stands for."""
+
+    name: str = param("", doc="class name (a touch label)")
+    materials: tuple[str, ...] = param((), doc="materials or families of the class")
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ConfigError("classes: every class needs a name")
+        if not self.materials:
+            raise ConfigError(f"classes: class {self.name!r} lists no materials")
+        for entry in self.materials:
+            resolve_label(entry)  # raises ConfigError naming the unknown entry and what is accepted
 
 
 @dataclass(frozen=True)
@@ -151,6 +270,9 @@ class ObjectsConfig:
     """What is touched."""
 
     materials: tuple[str, ...] = param((), doc="material names from synth.materials; empty = whole library")
+    classes: tuple[ObjectClass, ...] = param(
+        (), omit_default=True, doc="user classes; when given they are what is classified (materials stays empty)"
+    )
     offset_k: tuple[float, float] = param(
         (-4.0, 4.0), lo=-100.0, hi=100.0, unit="K", ordered=True, doc="object temperature minus ambient"
     )
@@ -159,6 +281,23 @@ class ObjectsConfig:
 
     def __post_init__(self) -> None:
         resolve_materials(self.materials)  # raises ConfigError naming an unknown material
+        if self.classes and self.materials:
+            raise ConfigError("objects: give either materials or classes, not both")
+        names = [c.name for c in self.classes]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"objects.classes: a class is listed twice ({', '.join(names)})")
+        members = [m.name for c in self.classes for m in _class_materials(c)]
+        if len(set(members)) != len(members):
+            raise ConfigError("objects.classes: a material belongs to two classes")
+
+
+def _class_materials(cls: ObjectClass) -> tuple[Material, ...]:
+    out: list[Material] = []
+    for entry in cls.materials:
+        for m in resolve_label(entry):
+            if m not in out:
+                out.append(m)
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -170,6 +309,9 @@ class ReadoutConfig:
     noise_k: float = param(0.01, lo=0.0, hi=10.0, unit="K", doc="thermistor noise s.d.")
     adc_step_k: float = param(0.01, lo=0.0, hi=10.0, unit="K", doc="ADC step (0 = no quantisation)")
     adc_range_c: tuple[float, float] = param((0.0, 100.0), lo=-273.0, hi=1000.0, unit="degC", ordered=True)
+    timing_jitter_s: float = param(
+        0.0, lo=0.0, hi=1.0, unit="s", omit_default=True, doc="s.d. of the recorder's time-stamp jitter"
+    )
 
     @property
     def n_samples(self) -> int:
@@ -184,8 +326,16 @@ class ThermalConfig:
     contact: ContactConfig = param(ContactConfig())
     objects: ObjectsConfig = param(ObjectsConfig())
     readout: ReadoutConfig = param(ReadoutConfig())
+    passive: PassiveConfig = param(PassiveConfig(), omit_default=True)
+    channels: tuple[Literal["heated", "passive"], ...] = param(
+        ("heated",), omit_default=True, doc="the channels a classifier reads, in this order"
+    )
 
     def __post_init__(self) -> None:
+        if not self.channels or self.channels[0] != "heated" or len(set(self.channels)) != len(self.channels):
+            raise ConfigError(f"channels: {list(self.channels)} must start with 'heated' and name each channel once")
+        if "passive" in self.channels and not self.passive.enabled:
+            raise ConfigError("channels: 'passive' needs passive.enabled = true")
         if self.window_s > self.readout.duration_s:
             raise ConfigError(
                 f"window_s: {self.window_s} s is longer than readout.duration_s ({self.readout.duration_s} s)"
@@ -198,6 +348,13 @@ class ThermalConfig:
         lo, hi = self.readout.adc_range_c
         if hi <= lo:
             raise ConfigError(f"readout.adc_range_c: empty range {[lo, hi]}")
+        if self.dynamic and self.contact.onset_s[0] + self.contact.contact_s[0] < self.readout.duration_s:
+            raise ConfigError(
+                "contact.contact_s: a real-sensor scene (lags, heater control, drift, contact ramp, passive channel "
+                "or jitter) holds the contact to the end of the record: contact_s must reach readout.duration_s "
+                f"from the earliest onset ({self.contact.onset_s[0]} + {self.contact.contact_s[0]} < "
+                f"{self.readout.duration_s} s)"
+            )
 
     @property
     def n_pixels(self) -> int:
@@ -209,12 +366,39 @@ class ThermalConfig:
 
     @cached_property
     def material_list(self) -> tuple[Material, ...]:
+        if self.objects.classes:
+            return tuple(m for c in self.objects.classes for m in _class_materials(c))
         return resolve_materials(self.objects.materials)
+
+    @cached_property
+    def class_names(self) -> tuple[str, ...]:
+        """What is classified: the user's classes, else one class per material."""
+        if self.objects.classes:
+            return tuple(c.name for c in self.objects.classes)
+        return tuple(m.name for m in self.material_list)
+
+    @cached_property
+    def class_of_material(self) -> np.ndarray:
+        """Class index of every entry of :attr:`material_list`."""
+        if not self.objects.classes:
+            return np.arange(len(self.material_list))
+        return np.array([k for k, c in enumerate(self.objects.classes) for _ in _class_materials(c)])
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether touches need the real-sensor model (:mod:`synth.sensors.thermal_touch`)."""
+        return (
+            self.sensor.dynamic
+            or self.passive.enabled
+            or max(self.contact.ramp_s) > 0
+            or self.readout.timing_jitter_s > 0
+        )
 
 
 CONFIG_CLASS = ThermalConfig
 OUTPUTS: dict[str, str] = {
     "readings": "thermistor temperatures (degC) of every pixel over the record: (P, R), pixels row-major",
+    "passive": "the passive (unheated) thermistor beside every pixel (degC): (P, R); needs passive.enabled",
     "latent": "per-pixel truth: material, its properties, contact, temperatures, onset, release, sensor",
 }
 DEFAULT_OUTPUTS = ("readings", "latent")
@@ -555,6 +739,14 @@ _LATENTS: dict[str, tuple[str, str]] = {
 }
 
 
+_DYNAMIC_LATENTS: dict[str, tuple[str, str]] = {
+    "latent_class": ("int16", "class index (the scene's classes, else its materials), -1 = touches nothing"),
+    "latent_ramp_s": ("float32", "contact build-up time (s)"),
+    "latent_drift_k_s": ("float32", "heated reading's drift before contact (K/s)"),
+    "latent_lag_s": ("float32", "heated thermistor's lags tau_1 + tau_2 (s)"),
+}
+
+
 class ThermalSimulator:
     """Draws touches from the scene and computes the wanted outputs (float64 inside, float32 out)."""
 
@@ -571,9 +763,16 @@ class ThermalSimulator:
         specs: dict[str, ArraySpec] = {}
         if self.scene.wants("readings"):
             specs["readings"] = ArraySpec((p, r), "float32", OUTPUTS["readings"])
+        if self.scene.wants("passive"):
+            if not self.config.passive.enabled:
+                raise ConfigError("outputs: 'passive' needs [thermal.passive] enabled = true")
+            specs["passive"] = ArraySpec((p, r), "float32", OUTPUTS["passive"])
         if self.scene.wants("latent"):
             for key, (dtype, doc) in _LATENTS.items():
                 specs[key] = ArraySpec((p,), dtype, doc)
+            if self.config.dynamic:
+                for key, (dtype, doc) in _DYNAMIC_LATENTS.items():
+                    specs[key] = ArraySpec((p,), dtype, doc)
         return specs
 
     def _layout(self, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -643,7 +842,13 @@ class ThermalSimulator:
         spreading = spreading_conductance(k, radius_m) if cc.spreading else np.zeros_like(k)
         object_c = ambient[:, None] + per_pixel(offset)
         v0 = ambient[:, None] + heater / loss - object_c
+        extra = {}
+        if cfg.dynamic:  # drawn after the seed's quantities: the seed's scenes keep their streams
+            from synth.sensors.thermal_touch import draw_dynamics
+
+            extra = draw_dynamics(cfg, n, p, rng)
         return {
+            **extra,
             "layout": layout,
             "touched": touched,
             "material": np.where(touched, per_pixel(mat), -1),
@@ -690,7 +895,20 @@ class ThermalSimulator:
     def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
         d = self.draw(n, rng)
         out: dict[str, np.ndarray] = {}
-        if self.scene.wants("readings"):
+        if self.config.dynamic:
+            from synth.sensors.thermal_touch import clean_channels, jitter
+
+            heated, passive = clean_channels(self.config, self.time_s, d)
+            sigma = self.config.readout.timing_jitter_s if self.scene.noise else 0.0
+            if self.scene.wants("readings"):
+                out["readings"] = self.readout(jitter(heated, self.time_s, sigma, rng), rng, self.scene.noise).astype(
+                    np.float32
+                )
+            if self.scene.wants("passive") and passive is not None:
+                out["passive"] = self.readout(jitter(passive, self.time_s, sigma, rng), rng, self.scene.noise).astype(
+                    np.float32
+                )
+        elif self.scene.wants("readings"):
             clean = self.clean_readings(d)
             out["readings"] = self.readout(clean, rng, self.scene.noise).astype(np.float32)
         if self.scene.wants("latent"):
@@ -722,6 +940,14 @@ class ThermalSimulator:
                 latent_heater_w_m2=d["heater"].astype(f32),
                 latent_ambient_c=np.broadcast_to(d["ambient"][:, None], touched.shape).astype(f32),
             )
+            if self.config.dynamic:
+                klass = self.config.class_of_material[np.maximum(d["material"], 0)]
+                out.update(
+                    latent_class=np.where(touched, klass, -1).astype(np.int16),
+                    latent_ramp_s=d["ramp"].astype(f32),
+                    latent_drift_k_s=d["drift"].astype(f32),
+                    latent_lag_s=(d["lag1"] + d["lag2"]).astype(f32),
+                )
         return out
 
 

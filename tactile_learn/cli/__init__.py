@@ -18,7 +18,20 @@ from synth.errors import TactileError
 
 __all__ = ["main"]
 
-SUBCOMMANDS = ("generate", "simulate", "eval", "train", "export", "bench", "calibrate", "scenes", "sweep", "demo")
+SUBCOMMANDS = (
+    "generate",
+    "simulate",
+    "eval",
+    "train",
+    "export",
+    "bench",
+    "calibrate",
+    "adapt",
+    "scenes",
+    "materials",
+    "sweep",
+    "demo",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

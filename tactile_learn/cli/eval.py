@@ -21,6 +21,7 @@ EXAMPLES = """\
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
   tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
+  tactile-learn eval --task thermal --data robot/ --method adapted/model.onnx --durations 0.5,1,2,4 --group-by condition
 An .npz needs the task's arrays (strips: 'readings' (B, N+M) and 'pressure' (B, N, M)); a dataset
 folder from 'generate' carries its own scene; other data is read with the model's scene (a
 classical method: the task's default) unless --scene names one. Prints and writes
@@ -46,6 +47,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--reference", action="store_true", help="add method-independent reference metrics (thermal: the oracle; slow)"
     )
+    parser.add_argument(
+        "--durations",
+        type=_durations,
+        default=None,
+        help="thermal: contact durations (s) to evaluate, comma-separated (default 0.25,0.5,1,2,4)",
+    )
+    parser.add_argument(
+        "--group-by", default=None, help="thermal: also report metrics per value of this touches.csv column (by_group)"
+    )
+
+
+def _durations(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds separated by commas, got {text!r}") from None
+    if not values or not all(0 < v < 1e5 for v in values):
+        raise argparse.ArgumentTypeError(f"expected positive durations (s), got {text!r}")
+    return values
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,7 +85,10 @@ def run(args: argparse.Namespace) -> int:
         raise DataError(f"{args.data}: no frames to evaluate")
     estimator = resolve_method(args.task, args.method, data.scene, threads=args.threads)
     start = time.perf_counter()
-    metrics = task.evaluate(estimator, data)
+    options = {k: v for k, v in (("durations", args.durations), ("group_by", args.group_by)) if v is not None}
+    if options and args.task != "thermal":
+        raise ConfigError(f"--durations and --group-by apply to the thermal task, not {args.task!r}")
+    metrics = task.evaluate(estimator, data, **options) if options else task.evaluate(estimator, data)
     elapsed = time.perf_counter() - start
     if args.reference:
         metrics.update(task.reference_metrics(data))

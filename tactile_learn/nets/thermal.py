@@ -43,15 +43,19 @@ _AMP_FLOOR_K = 0.05
 
 
 class ThermalNet(nn.Module):
-    """Temperatures (B, W) -> probabilities (B, K + 1); see the module docstring."""
+    """Temperatures (B, W) or (B, S, W) (S sensor channels: heated, passive) -> probabilities
+    (B, K + 1); see the module docstring."""
 
     scale: torch.Tensor
 
-    def __init__(self, window: int, n_classes: int, scale_k: float, size: str) -> None:
+    def __init__(self, window: int, n_classes: int, scale_k: float | list[float], size: str) -> None:
         super().__init__()
         channels, stages, hidden, double = SIZES[size]
-        self.register_buffer("scale", torch.tensor(float(scale_k)))
-        layers: list[nn.Module] = [nn.Conv1d(2, channels, 5, padding=2), nn.GELU()]
+        scales = [float(scale_k)] if isinstance(scale_k, (int, float)) else [float(v) for v in scale_k]
+        self.sensors = len(scales)
+        # one scale per sensor channel; a single-channel net keeps the seed's scalar buffer
+        self.register_buffer("scale", torch.tensor(scales[0] if self.sensors == 1 else scales))
+        layers: list[nn.Module] = [nn.Conv1d(2 * self.sensors, channels, 5, padding=2), nn.GELU()]
         length = window
         for _ in range(stages):
             layers += [nn.Conv1d(channels, channels, 5, padding=2, stride=2), nn.GELU()]
@@ -59,8 +63,10 @@ class ThermalNet(nn.Module):
                 layers += [nn.Conv1d(channels, channels, 3, padding=1), nn.GELU()]
             length = (length - 1) // 2 + 1
         self.conv = nn.Sequential(*layers)
+        # scalars: each channel's log peak change, and each other channel's baseline minus the heated one
+        scalars = self.sensors + (self.sensors - 1)
         self.head = nn.Sequential(
-            nn.Linear(channels * length + 1, hidden),
+            nn.Linear(channels * length + scalars, hidden),
             nn.GELU(),
             nn.Linear(hidden, hidden),
             nn.GELU(),
@@ -68,13 +74,25 @@ class ThermalNet(nn.Module):
         )
 
     def logits(self, x: torch.Tensor) -> torch.Tensor:
-        base = x[:, :BASE].mean(dim=1, keepdim=True)
-        drop = (x - base) / self.scale  # scale >= 0.1 K (fit_stats)
-        amp = drop.abs().amax(dim=1, keepdim=True)
-        shape = drop / (amp + _AMP_FLOOR_K / self.scale)
-        h = self.conv(torch.stack([drop, shape], dim=1))
-        log_amp = torch.log(amp * self.scale + _AMP_FLOOR_K)  # argument >= 0.05 K
-        return self.head(torch.cat([h.flatten(1), log_amp], dim=1))
+        if self.sensors == 1:
+            base = x[:, :BASE].mean(dim=1, keepdim=True)
+            drop = (x - base) / self.scale  # scale >= 0.1 K (fit_stats)
+            amp = drop.abs().amax(dim=1, keepdim=True)
+            shape = drop / (amp + _AMP_FLOOR_K / self.scale)
+            h = self.conv(torch.stack([drop, shape], dim=1))
+            log_amp = torch.log(amp * self.scale + _AMP_FLOOR_K)  # argument >= 0.05 K
+            return self.head(torch.cat([h.flatten(1), log_amp], dim=1))
+        scale = self.scale.view(1, -1, 1)
+        base = x[:, :, :BASE].mean(dim=2, keepdim=True)  # (B, S, 1)
+        drop = (x - base) / scale
+        amp = drop.abs().amax(dim=2, keepdim=True)
+        shape = drop / (amp + _AMP_FLOOR_K / scale)
+        h = self.conv(torch.cat([drop, shape], dim=1))
+        log_amp = torch.log(amp * scale + _AMP_FLOOR_K).flatten(1)  # (B, S)
+        # how far apart the channels start (a heated sensor above a passive one at ambient): the
+        # object's unknown temperature is shared, so this difference is physics, not an offset
+        gap = (base[:, 1:, 0] - base[:, :1, 0]) / 10.0
+        return self.head(torch.cat([h.flatten(1), log_amp, gap], dim=1))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return torch.softmax(self.logits(x), dim=1)
@@ -83,7 +101,13 @@ class ThermalNet(nn.Module):
 def build_thermal_net(size: str, scene: Scene, stats: dict[str, Any]) -> ThermalNet:
     if size not in SIZES:
         raise ValueError(f"size {size!r} is not one of {', '.join(SIZES)}")
-    return ThermalNet(int(stats["window"]), len(stats["classes"]), float(stats["scale_k"]), size)
+    scale = stats.get("channel_scale_k", stats["scale_k"])
+    return ThermalNet(
+        int(stats["window"]),
+        len(stats["classes"]),
+        scale if len(stats.get("channels", [1])) > 1 else float(stats["scale_k"]),
+        size,
+    )
 
 
 def thermal_loss(logits: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:

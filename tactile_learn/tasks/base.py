@@ -85,6 +85,10 @@ class Task(ABC):
         """Dataset arrays that ``training_batch`` needs (default: the input and the truth)."""
         return (self.input_key, *self.truth_keys)
 
+    def train_keys_for(self, scene: Scene) -> tuple[str, ...]:
+        """The arrays ``training_batch`` needs for ``scene`` (default: :attr:`train_keys`)."""
+        return self.train_keys
+
     # ---- data and evaluation (numpy only) ----------------------------------------------------
 
     def read_arrays(self, source: str | Path, scene: Scene | None) -> tuple[dict[str, np.ndarray], Scene]:

@@ -1,37 +1,44 @@
-"""The thermal fingertip task (issue 4): one pixel's temperature curve -> material.
+"""The thermal fingertip task (issues 4 and 11): temperature curves -> material or class.
 
 Input ``readings`` (B, W): one thermistor's temperatures (degC) over the last ``W = window_s * fs``
 samples, ending "now"; the contact onset is somewhere inside (the 4 x 4 array is classified pixel
-by pixel: every pixel's curve is one row). Output ``probabilities`` (B, K + 1): the scene's K
-materials, then ``none`` (the pixel touches nothing).
+by pixel: every pixel's curve is one row). A scene whose ``channels`` also name the passive
+thermistor takes (B, 2, W): heated, then passive, over the same samples. Output
+``probabilities`` (B, K + 1): the scene's K classes (its user classes, e.g. metal and wood, else
+its materials), then ``none`` (the pixel touches nothing).
 
-Views by contact duration. A generated touch keeps its whole record (``readings`` (P, R)) and its
-onset; the view at duration ``d`` is the window that ends at the last sample with
-``t <= onset + d`` (padded on the left with the record's first sample if the record starts later
-than the window). :meth:`ThermalTask.evaluate` predicts every view ``d`` in :data:`DURATIONS_S`:
+Views by contact duration. A generated touch keeps its whole record (``readings`` (P, R), and
+``passive``) and its onset; the view at duration ``d`` is the window that ends at the last sample
+with ``t <= onset + d`` (padded on the left with the record's first sample if the record starts
+later than the window); a view exists while the record, and the contact when its release is known,
+lasts. :meth:`ThermalTask.evaluate` predicts every view ``d`` in :data:`DURATIONS_S` (or the
+``durations`` it is given):
 
-- ``accuracy``: material accuracy over pixels in contact, pooled over the four views;
+- ``accuracy``: class accuracy over pixels in contact, pooled over the views;
 - ``accuracy_by_duration``, ``family_accuracy_by_duration``, ``contact_accuracy_by_duration``
-  (keys ``"0.25"``, ``"0.5"``, ``"1.0"``, ``"2.0"``); family = metal, stone/glass, polymer, wood,
-  foam; contact accuracy = touching vs ``none`` over every pixel;
-- ``confusion_pairs``: the most frequent (true, predicted) material errors pooled over the views,
-  with their nominal effusivities;
-- ``per_material_accuracy``: at 1 s.
+  (keys ``"0.25"``, ``"0.5"``, ``"1.0"``, ``"2.0"``, ``"4.0"``); family = metal, stone/glass,
+  polymer, wood, foam; contact accuracy = touching vs ``none`` over every pixel;
+- ``confusion_pairs``: the most frequent (true, predicted) errors pooled over the views, with their
+  nominal effusivities;
+- ``per_material_accuracy``: per class at 1 s;
+- ``by_group`` (with ``group_by``): all of the above per value of a touches.csv column.
 
 The oracle (the physics fit given each pixel's true sensor parameters) is not an estimator (it
 needs the truth): :func:`oracle_accuracy_by_duration` computes ``oracle_accuracy_by_duration`` for
 the same data; ``eval``/``bench`` call it and add the key beside the method's metrics.
 
 Evaluation data: a generated dataset folder, an ``.npz`` (``readings`` (B, R) or (B, P, R) in
-degC at the scene's rate, labels ``latent_material`` (int index, -1 = none) or ``material``
-(names), optional ``latent_onset_s``/``onset_s``), or a recording directory
-(:mod:`tactile_learn.thermal_recordings`).
+degC at the scene's rate, ``passive`` alike when the scene reads it, labels ``latent_material``
+(int index, -1 = none) or ``material`` (names), optional ``latent_onset_s``/``onset_s``), or a
+recording directory (:mod:`tactile_learn.thermal_recordings`: the onset from touches.csv, else the
+force column's half-plateau crossing, else the heated curve's departure).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -42,7 +49,7 @@ from synth.dataset import Dataset, load_arrays
 from synth.errors import ConfigError, DataError, InputError
 from synth.io import atomic_write_text
 from synth.materials import Material
-from synth.scene import Scene, load_scene
+from synth.scene import Scene, load_scene, parse_scene
 from synth.sensors.thermal import ThermalConfig
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks.base import EvalData, Task
@@ -53,8 +60,11 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DURATIONS_S",
+    "Classes",
     "ThermalTask",
+    "channel_keys",
     "class_names",
+    "classes_of",
     "labels_from_materials",
     "oracle_accuracy_by_duration",
     "thermal_metrics",
@@ -62,14 +72,16 @@ __all__ = [
     "windows",
 ]
 
-#: contact durations (s) of the evaluation views
-DURATIONS_S: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0)
+#: contact durations (s) of the evaluation views (``eval --durations`` chooses others)
+DURATIONS_S: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0, 4.0)
 NONE = "none"
 #: training windows end this long after onset at least / before the window's start at most
 _TRAIN_MIN_S = 0.1
 _TRAIN_BASE_S = 0.2
 #: pixels drawn per touch in a training batch
 _TRAIN_PIXELS = 4
+#: a real record starts this long (uniform, s) before its contact; training cuts windows alike
+_RECORD_LEAD_S = (0.3, 3.0)
 
 
 def _config(scene: Scene) -> ThermalConfig:
@@ -78,15 +90,63 @@ def _config(scene: Scene) -> ThermalConfig:
     return scene.sensor
 
 
+@dataclass(frozen=True)
+class Classes:
+    """What a scene classifies: names, each class's family index (-1: mixed) and effusivity."""
+
+    names: tuple[str, ...]
+    families: np.ndarray
+    effusivity: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+
+def classes_of(source: ThermalConfig | Sequence[Material]) -> Classes:
+    """The classes of a scene's config (its user classes, else its materials) or of materials."""
+    if isinstance(source, ThermalConfig):
+        mats, of = source.material_list, source.class_of_material
+        names = source.class_names
+    else:
+        mats, of = tuple(source), np.arange(len(source))
+        names = tuple(m.name for m in mats)
+    families, eff = [], []
+    for k in range(len(names)):
+        members = [m for m, c in zip(mats, of, strict=True) if c == k]
+        fam = {m.family_index for m in members}
+        families.append(fam.pop() if len(fam) == 1 else -1)
+        eff.append(float(np.exp(np.mean([np.log(m.effusivity) for m in members]))))
+    return Classes(names, np.array(families), np.array(eff))
+
+
+def recording_labels(config: ThermalConfig) -> dict[str, Any]:
+    """How :func:`~tactile_learn.thermal_recordings.read_recordings` reads labels for a scene:
+    against its classes (by name) or its materials."""
+    if config.objects.classes:
+        names = config.class_names
+        of = config.class_of_material
+        mats = config.material_list
+        return {
+            "classes": {n: tuple(m.name for m, c in zip(mats, of, strict=True) if c == k) for k, n in enumerate(names)}
+        }
+    return {"materials": [m.name for m in config.material_list]}
+
+
 def class_names(scene: Scene) -> tuple[str, ...]:
-    """The prediction's classes: the scene's materials, then ``none``."""
-    return (*(m.name for m in _config(scene).material_list), NONE)
+    """The prediction's classes: the scene's classes (or materials), then ``none``."""
+    return (*_config(scene).class_names, NONE)
 
 
-def labels_from_materials(material_index: np.ndarray, n_materials: int) -> np.ndarray:
-    """Class labels (int64): the material index, ``n_materials`` (``none``) where it is -1."""
+def labels_from_materials(
+    material_index: np.ndarray, n_materials: int, config: ThermalConfig | None = None
+) -> np.ndarray:
+    """Class labels (int64): the class of the material index (``config``'s classes; without a
+    config the material itself), ``none`` where it is -1."""
     idx = np.asarray(material_index).astype(np.int64)
-    return np.where(idx < 0, n_materials, idx)
+    if config is None:
+        return np.where(idx < 0, n_materials, idx)
+    of = config.class_of_material
+    return np.where(idx < 0, len(config.class_names), of[np.clip(idx, 0, len(of) - 1)])
 
 
 def windows(records: np.ndarray, lengths: np.ndarray, end: np.ndarray, width: int) -> np.ndarray:
@@ -97,25 +157,36 @@ def windows(records: np.ndarray, lengths: np.ndarray, end: np.ndarray, width: in
     return np.take_along_axis(records, np.clip(idx, 0, records.shape[1] - 1), axis=1).astype(np.float32)
 
 
+def channel_keys(config: ThermalConfig) -> tuple[str, ...]:
+    """EvalData keys of the records of the scene's input channels (heated first)."""
+    return tuple("record" if c == "heated" else f"record_{c}" for c in config.channels)
+
+
 def view(data: EvalData, duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """The view of ``data`` at contact duration ``duration_s``: windows (N, W) and a mask of the rows
-    whose record reaches ``onset + duration_s``."""
+    """The view of ``data`` at contact duration ``duration_s``: windows (N, W) (one channel) or
+    (N, C, W) (several), and a mask of the rows whose record (and contact, when its release is
+    known) reaches ``onset + duration_s``."""
     cfg = _config(data.scene)
     fs = cfg.readout.sampling_hz
-    record, length, onset = data.extra["record"], data.extra["length"], data.extra["onset_s"]
+    length, onset = data.extra["length"], data.extra["onset_s"]
     end_s = np.floor((onset.astype(np.float64) + duration_s) * fs + 1e-9) + 1
     end = np.clip(end_s, 0, length + 1).astype(np.int64)  # clipped first: a far-off onset does not overflow
     valid = end <= length
-    return windows(record, length, np.minimum(end, length), cfg.window_samples), valid
+    if "release_s" in data.extra:  # a simulated touch: the view must end before the release
+        valid &= onset + duration_s <= data.extra["release_s"] + 1e-9
+    ends = np.minimum(end, length)
+    parts = [windows(data.extra[key], length, ends, cfg.window_samples) for key in channel_keys(cfg)]
+    return (parts[0] if len(parts) == 1 else np.stack(parts, axis=1)), valid
 
 
-def thermal_metrics(pred: np.ndarray, labels: np.ndarray, materials: tuple[Material, ...]) -> dict[str, Any]:
-    """Accuracy (material, over pixels in contact), family and contact accuracy, per-material
-    accuracy and the confusion counts of predictions ``pred`` (B, K + 1) against ``labels`` (B,)."""
-    k = len(materials)
+def thermal_metrics(pred: np.ndarray, labels: np.ndarray, materials: Sequence[Material] | Classes) -> dict[str, Any]:
+    """Accuracy (class, over pixels in contact), family and contact accuracy, per-class accuracy
+    and the confusion counts of predictions ``pred`` (B, K + 1) against ``labels`` (B,)."""
+    classes = materials if isinstance(materials, Classes) else classes_of(materials)
+    k = len(classes)
     guess = np.asarray(pred).argmax(axis=1) if len(pred) else np.zeros(0, dtype=np.int64)
     labels = np.asarray(labels).astype(np.int64)
-    family = np.array([m.family_index for m in materials] + [-1])
+    family = np.concatenate([classes.families, [-2]])
     contact = labels < k
     n = int(contact.sum())
     right = guess[contact] == labels[contact]
@@ -127,10 +198,10 @@ def thermal_metrics(pred: np.ndarray, labels: np.ndarray, materials: tuple[Mater
         "n_none": int((~contact).sum()),
     }
     per = {}
-    for i, m in enumerate(materials):
+    for i, name in enumerate(classes.names):
         sel = labels == i
         if sel.any():
-            per[m.name] = float((guess[sel] == i).mean())
+            per[name] = float((guess[sel] == i).mean())
     out["per_material_accuracy"] = per
     counts = np.zeros((k + 1, k + 1), dtype=np.int64)
     np.add.at(counts, (labels, guess), 1)
@@ -138,12 +209,15 @@ def thermal_metrics(pred: np.ndarray, labels: np.ndarray, materials: tuple[Mater
     return out
 
 
-def _confusion_pairs(counts: np.ndarray, materials: tuple[Material, ...], top: int = 12) -> list[dict[str, Any]]:
-    names = [m.name for m in materials] + [NONE]
-    eff = [m.effusivity for m in materials] + [0.0]
+def _confusion_pairs(
+    counts: np.ndarray, materials: Sequence[Material] | Classes, top: int = 12
+) -> list[dict[str, Any]]:
+    classes = materials if isinstance(materials, Classes) else classes_of(materials)
+    names = [*classes.names, NONE]
+    eff = [*classes.effusivity.tolist(), 0.0]
     totals = counts.sum(axis=1)
     pairs: list[dict[str, Any]] = []
-    for i in range(len(materials)):
+    for i in range(len(classes)):
         for j in range(len(names)):
             if i != j and counts[i, j] > 0:
                 pairs.append(
@@ -158,6 +232,18 @@ def _confusion_pairs(counts: np.ndarray, materials: tuple[Material, ...], top: i
                 )
     pairs.sort(key=lambda p: -p["count"])
     return pairs[:top]
+
+
+def _groups(data: EvalData, column: str) -> np.ndarray:
+    """The values of ``column`` per row: a touches.csv column of recordings, or a per-pixel array
+    of simulated data (``latent_...``); a DataError lists what exists."""
+    for key in (f"info:{column}", column, f"latent_{column}"):
+        if key in data.extra:
+            return np.asarray(data.extra[key]).astype(str)
+    known = sorted(k[5:] for k in data.extra if k.startswith("info:")) + sorted(
+        k for k in data.extra if k.startswith("latent_")
+    )
+    raise DataError(f"--group-by: {data.source} has no column {column!r} (available: {', '.join(known) or 'none'})")
 
 
 def _key(d: float) -> str:
@@ -177,7 +263,14 @@ class ThermalTask(Task):
     bench_samples = 200  # touches: 3,200 pixel curves, each viewed at four contact durations
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
-        return (_config(scene).window_samples,)
+        cfg = _config(scene)
+        if len(cfg.channels) == 1:
+            return (cfg.window_samples,)
+        return (len(cfg.channels), cfg.window_samples)
+
+    def train_keys_for(self, scene: Scene) -> tuple[str, ...]:
+        extra = tuple(c for c in _config(scene).channels if c != "heated")
+        return (*self.train_keys, *extra)
 
     def output_labels(self, scene: Scene) -> tuple[str, ...]:
         return class_names(scene)
@@ -218,10 +311,15 @@ class ThermalTask(Task):
         return oracle_accuracy_by_duration(data, limit)
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
+        from tactile_learn.estimators.classical.calibrated_fit import CalibratedFitEstimator
         from tactile_learn.estimators.classical.curve_match import CurveMatchEstimator
         from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
 
-        return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}
+        return {
+            "curve_match": CurveMatchEstimator,
+            "physics_fit": PhysicsFitEstimator,
+            "calibrated": CalibratedFitEstimator,
+        }
 
     # ---- evaluation data -----------------------------------------------------------------------
 
@@ -275,23 +373,33 @@ class ThermalTask(Task):
                     f"{source}: latent_material must hold integer material indices (-1 = none), got dtype {mat.dtype}"
                 )
             mat = mat.astype(np.int64)
+            class_level = False
         elif "material" in arrays:
-            names = [m.name for m in cfg.material_list]
+            names = list(cfg.class_names)
+            mat_names = [m.name for m in cfg.material_list]
             raw = per_touch("labels", arrays["material"])
-            unknown = sorted({str(v) for v in raw.ravel() if str(v) not in (*names, NONE, "")})
+            unknown = sorted({str(v) for v in raw.ravel() if str(v) not in (*names, *mat_names, NONE, "")})
             if unknown:
                 raise DataError(
-                    f"{source}: material(s) {', '.join(unknown)} not in the scene's list ({', '.join(names)})"
+                    f"{source}: label(s) {', '.join(unknown)} not in the scene's classes ({', '.join(names)})"
                 )
-            mat = np.array([names.index(str(v)) if str(v) in names else -1 for v in raw.ravel()], dtype=np.int64)
-            mat = mat.reshape(raw.shape)
+
+            def to_class(v: str) -> int:
+                if v in names:
+                    return names.index(v)
+                if v in mat_names:
+                    return int(cfg.class_of_material[mat_names.index(v)])
+                return -1
+
+            mat = np.array([to_class(str(v)) for v in raw.ravel()], dtype=np.int64).reshape(raw.shape)
+            class_level = True
         else:
             raise DataError(
                 f"{source}: needs labels 'latent_material' (material index, -1 = none) or 'material' (names)"
             )
         if mat.shape != (b, p):
             raise DataError(f"{source}: labels have shape {mat.shape}, readings {readings.shape} need {(b, p)}")
-        if mat.size and (mat.max() >= k or mat.min() < -1):
+        if not class_level and mat.size and (mat.max() >= k or mat.min() < -1):
             raise DataError(f"{source}: material indices must lie in [-1, {k - 1}] for scene {scene.name!r}")
         records = readings.reshape(b * p, r).astype(np.float32)
         onset_key = next((key for key in ("latent_onset_s", "onset_s") if key in arrays), None)
@@ -309,14 +417,26 @@ class ThermalTask(Task):
             "touch": np.repeat(np.arange(b), p),
             "pixel": np.tile(np.arange(p), b),
         }
+        for channel in cfg.channels[1:]:
+            if channel not in arrays:
+                raise DataError(
+                    f"{source}: scene {scene.name!r} reads the {channel} channel: needs an array {channel!r}"
+                )
+            other = np.asarray(arrays[channel])
+            if other.size != b * p * r:
+                raise DataError(f"{source}: {channel} has shape {other.shape}, readings {readings.shape}")
+            extra[f"record_{channel}"] = other.reshape(b * p, r).astype(np.float32)
         for key, value in arrays.items():
             if key.startswith("latent_") and np.asarray(value).shape[:2] == (b, p):
                 extra[key] = np.asarray(value).reshape(b * p, *np.asarray(value).shape[2:])
-        labels = labels_from_materials(mat.ravel(), k)
+        if "latent_release_s" in extra:
+            extra["release_s"] = extra["latent_release_s"].astype(np.float64)
+        flat = mat.ravel()
+        labels = np.where(flat < 0, len(cfg.class_names), flat) if class_level else labels_from_materials(flat, k, cfg)
         data = EvalData(
             inputs=np.zeros((b * p, 0), np.float32), truth={"label": labels}, scene=scene, extra=extra, source=source
         )
-        data.inputs = view(data, max(DURATIONS_S))[0]
+        data.inputs = view(data, 2.0)[0]
         return data
 
     def _detect_onsets(self, records: np.ndarray, cfg: ThermalConfig) -> np.ndarray:
@@ -328,69 +448,123 @@ class ThermalTask(Task):
         return np.where(onset.detected, (onset.index + 0.5) / fs, 0.0)
 
     def _from_recordings(self, path: Path, scene: Scene) -> EvalData:
-        from tactile_learn.thermal_recordings import read_recordings, resample
+        from tactile_learn.thermal_recordings import press_onset, read_recordings, resample_channel
 
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
-        names = [m.name for m in cfg.material_list]
-        touches = read_recordings(path, names)
-        series = [resample(t, fs) for t in touches]
-        r = max(len(s[0]) for s in series)
-        records = np.empty((len(series), r), dtype=np.float32)
-        lengths = np.empty(len(series), dtype=np.int64)
-        for i, (values, _) in enumerate(series):
-            records[i, : len(values)] = values
-            records[i, len(values) :] = values[-1]
-            lengths[i] = len(values)
-        detected = self._detect_onsets(records, cfg)
-        onset = np.array([detected[i] if s[1] is None else s[1] / fs for i, s in enumerate(series)])
-        k = len(names)
+        touches = read_recordings(path, **recording_labels(cfg))
+        channels = [("record", "temperature_c")] + [(f"record_{c}", f"{c}_c") for c in cfg.channels[1:]]
+        for t in touches:
+            for _, column in channels[1:]:
+                if getattr(t, column) is None:
+                    raise DataError(
+                        f"{path / t.file}: scene {scene.name!r} reads {column}: the file has no such column"
+                    )
+        series = {key: [resample_channel(t, column, fs) for t in touches] for key, column in channels}
+        lengths = np.array([len(v) for v in series["record"]], dtype=np.int64)
+        r = int(lengths.max())
+        extra: dict[str, np.ndarray] = {}
+        for key, values in series.items():
+            records = np.empty((len(touches), r), dtype=np.float32)
+            for i, v in enumerate(values):
+                records[i, : len(v)] = v
+                records[i, len(v) :] = v[-1]
+            extra[key] = records
+        detected = self._detect_onsets(extra["record"], cfg)
+        onset = np.empty(len(touches))
+        source = np.empty(len(touches), dtype=object)
+        for i, t in enumerate(touches):
+            t0 = float(t.time_s[0])
+            pressed = press_onset(t.time_s, t.force) if t.force is not None else None
+            if t.onset_s is not None:
+                onset[i], source[i] = t.onset_s - t0, "given"
+            elif pressed is not None:
+                onset[i], source[i] = pressed - t0, "force"
+            else:
+                onset[i], source[i] = detected[i], "curve"
+        names = list(cfg.class_names)
         labels = np.array([names.index(t.material) if t.material else -2 for t in touches])
-        extra: dict[str, np.ndarray] = {
-            "record": records,
-            "length": lengths,
-            "onset_s": onset,
-            "labelled": labels >= 0,
-            "touch": np.arange(len(touches)),
-            "pixel": np.zeros(len(touches), dtype=np.int64),
-        }
+        extra.update(
+            length=lengths,
+            onset_s=onset,
+            onset_from=source,
+            labelled=labels >= 0,
+            touch=np.arange(len(touches)),
+            pixel=np.zeros(len(touches), dtype=np.int64),
+            file=np.array([t.file for t in touches], dtype=object),
+        )
+        for column in sorted({k for t in touches for k in t.info}):
+            extra[f"info:{column}"] = np.array([t.info.get(column, "") for t in touches], dtype=object)
+        if any(t.info.get("release_s") for t in touches):  # views must end before a release
+            extra["release_s"] = np.array(
+                [
+                    float(t.info["release_s"]) - float(t.time_s[0]) if t.info.get("release_s") else np.inf
+                    for t in touches
+                ]
+            )
         data = EvalData(
             inputs=np.zeros((len(touches), 0), np.float32),
-            truth={"label": np.where(labels >= 0, labels, k)},
+            truth={"label": np.where(labels >= 0, labels, len(names))},
             scene=scene,
             extra=extra,
             source=str(path),
         )
-        data.inputs = view(data, max(DURATIONS_S))[0]
+        data.inputs = view(data, 2.0)[0]
         # a record shorter than onset + 2 s is classified on what it has (its end)
         return data
 
     # ---- metrics -------------------------------------------------------------------------------
 
     def metrics(self, pred: np.ndarray, data: EvalData) -> dict[str, Any]:
-        materials = _config(data.scene).material_list
+        classes = classes_of(_config(data.scene))
         keep = data.extra.get("labelled", np.ones(len(data), dtype=bool))
-        out = thermal_metrics(np.asarray(pred)[keep], data.truth["label"][keep], materials)
-        out["confusion_pairs"] = _confusion_pairs(out.pop("confusion"), materials)
+        out = thermal_metrics(np.asarray(pred)[keep], data.truth["label"][keep], classes)
+        out["confusion_pairs"] = _confusion_pairs(out.pop("confusion"), classes)
         return out
 
-    def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
-        """Metrics of ``estimator`` on every duration view (see the module docstring)."""
+    def evaluate(
+        self,
+        estimator: Estimator,
+        data: EvalData,
+        durations: Sequence[float] | None = None,
+        group_by: str | None = None,
+    ) -> dict[str, Any]:
+        """Metrics of ``estimator`` on every duration view (see the module docstring); with
+        ``group_by`` (a column of a recording's ``touches.csv``, or a latent of simulated data) the
+        same metrics per value of that column under ``by_group``."""
         if "record" not in data.extra:
             return self.metrics(estimator.predict(data.inputs), data)
-        materials = _config(data.scene).material_list
+        durations = tuple(DURATIONS_S if durations is None else durations)
+        groups = _groups(data, group_by) if group_by else None
         keep_all = data.extra.get("labelled", np.ones(len(data), dtype=bool))
-        by: dict[str, dict[str, Any]] = {}
-        total = np.zeros((len(materials) + 1, len(materials) + 1), dtype=np.int64)
-        for d in DURATIONS_S:
+        preds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for d in durations:
             x, valid = view(data, d)
             keep = valid & keep_all
-            if not keep.any():
+            if keep.any():
+                preds[_key(d)] = (np.flatnonzero(keep), estimator.predict(x[keep]))
+        result = self._summary(data, preds, np.ones(len(data), dtype=bool))
+        if groups is not None:
+            result["by_group"] = {
+                str(value): {"n_touches": int((groups == value).sum()), **self._summary(data, preds, groups == value)}
+                for value in sorted(set(groups.tolist()))
+            }
+        return result
+
+    def _summary(
+        self, data: EvalData, preds: dict[str, tuple[np.ndarray, np.ndarray]], rows: np.ndarray
+    ) -> dict[str, Any]:
+        classes = classes_of(_config(data.scene))
+        k = len(classes)
+        by: dict[str, dict[str, Any]] = {}
+        total = np.zeros((k + 1, k + 1), dtype=np.int64)
+        for d, (index, pred) in preds.items():
+            sel = rows[index]
+            if not sel.any():
                 continue
-            m = thermal_metrics(estimator.predict(x[keep]), data.truth["label"][keep], materials)
+            m = thermal_metrics(pred[sel], data.truth["label"][index[sel]], classes)
             total += m.pop("confusion")
-            by[_key(d)] = m
-        k = len(materials)
+            by[d] = m
         right = np.trace(total[:k, :k])
         n_contact = total[:k].sum()
         result: dict[str, Any] = {
@@ -399,7 +573,7 @@ class ThermalTask(Task):
             "family_accuracy_by_duration": {d: m["family_accuracy"] for d, m in by.items()},
             "contact_accuracy_by_duration": {d: m["contact_accuracy"] for d, m in by.items()},
             "n_contact_by_duration": {d: m["n_contact"] for d, m in by.items()},
-            "confusion_pairs": _confusion_pairs(total, materials),
+            "confusion_pairs": _confusion_pairs(total, classes),
         }
         if "1.0" in by:
             result["per_material_accuracy"] = by["1.0"]["per_material_accuracy"]
@@ -407,16 +581,59 @@ class ThermalTask(Task):
 
     # ---- calibration ---------------------------------------------------------------------------
 
-    def calibrate(self, source: str | Path, out: str | Path, scene: Scene) -> dict[str, Any]:
-        """Fit the user's sensor (heat capacity, loss, heater, contact conductance range, noise,
-        ADC step, sampling rate) from labelled recordings; write a scene TOML for ``generate``."""
-        from tactile_learn.estimators.classical.physics_fit import calibrate_sensor
+    def calibrate(
+        self,
+        source: str | Path,
+        out: str | Path,
+        scene: Scene,
+        channels: str | None = None,
+        class_map: dict[str, tuple[str, ...]] | None = None,
+    ) -> dict[str, Any]:
+        """Fit the user's sensor from labelled recordings; write a scene TOML for ``generate``.
+
+        Recordings of a real fingertip (a ``passive_c`` or ``force`` column, labels that are
+        families or classes, a real-sensor scene, or ``channels`` given) get the real-sensor model
+        (:func:`tactile_learn.thermal_adapt.calibrate_recordings`: lags, heater, drift, contact
+        build-up, passive channel; the report goes to ``out`` with the suffix ``.json``); plain
+        single-material recordings of a seed-like sensor get the seed's model
+        (:func:`~tactile_learn.estimators.classical.physics_fit.calibrate_sensor`). Either way the
+        scene is validated before it is written, atomically: a failed calibration writes nothing."""
         from tactile_learn.thermal_recordings import read_recordings
 
         cfg = _config(scene)
-        touches = [t for t in read_recordings(source, [m.name for m in cfg.material_list]) if t.material]
+        touches = [t for t in read_recordings(source, class_map=class_map) if t.material]
         if not touches:
             raise DataError(f"{source}: no labelled touches to calibrate from")
+        names = {m.name for m in cfg.material_list}
+        real = (
+            channels is not None
+            or class_map is not None
+            or cfg.dynamic
+            or any(t.passive_c is not None or t.force is not None for t in touches)
+            or any(t.material not in names for t in touches)
+        )
+        if real:
+            from synth.io import atomic_write_json
+            from tactile_learn.thermal_adapt import CHANNEL_CHOICES, calibrate_recordings, write_scene
+
+            has_passive = all(t.passive_c is not None for t in touches)
+            chosen = CHANNEL_CHOICES[channels or ("all" if has_passive else "heated")]
+            calibrated_scene, report = calibrate_recordings(source, chosen, class_map, name=f"{scene.name}_calibrated")
+            write_scene(calibrated_scene, out, report)
+            report_path = Path(out).with_suffix(".json")
+            atomic_write_json(report_path, report)
+            return {
+                "scene": str(out),
+                "report": str(report_path),
+                "touches": len(touches),
+                "classes": list(calibrated_scene.sensor.class_names),
+                "residual": report["residual"],
+                "at_bound": report["at_bound"],
+                "not_identified": report["not_identified"],
+                "seconds": report["solver"]["seconds"],
+            }
+        from tactile_learn.estimators.classical.physics_fit import calibrate_sensor
+
         fitted, summary = calibrate_sensor(touches, cfg)
         calibrated = dataclasses.replace(
             scene,
@@ -424,28 +641,36 @@ class ThermalTask(Task):
             name=f"{scene.name}_calibrated",
             description=f"{scene.description} (sensor calibrated from {len(touches)} touches)".strip(),
         )
+        text = dumps_toml(calibrated.to_dict())
+        try:  # the scene must load back before it is written
+            parse_scene(calibrated.to_dict(), str(out))
+        except ConfigError as exc:
+            raise DataError(
+                f"{out}: the calibrated scene does not validate ({exc}); nothing written: calibrate with more, "
+                "longer or cleaner touches, or give the onsets (touches.csv column onset_s)"
+            ) from None
         header = "# Written by `tactile-learn calibrate --task thermal`: the sensor's own parameters.\n"
-        atomic_write_text(out, header + dumps_toml(calibrated.to_dict()))
-        try:  # the file must load back as a scene
-            load_scene(Path(out))
-        except ConfigError as exc:  # pragma: no cover - a bug in the calibration's ranges
-            raise DataError(f"{out}: the calibrated scene does not validate ({exc})") from None
+        atomic_write_text(out, header + text)
         return {"scene": str(out), "touches": len(touches), **summary}
 
     # ---- learning (torch inside) ---------------------------------------------------------------
 
     def fit_stats(self, arrays: dict[str, np.ndarray], scene: Scene) -> dict[str, Any]:
         cfg = _config(scene)
-        readings = np.asarray(arrays["readings"][:2000], dtype=np.float64)
-        # typical size of a contact's temperature change: the spread of record minus its start
-        swing = np.abs(readings - readings[..., :1]).max(axis=-1)
         touched = np.asarray(arrays["latent_material"][:2000]) >= 0
-        scale = float(np.median(swing[touched])) if touched.any() else 1.0
+        scales = []
+        for channel in cfg.channels:
+            readings = np.asarray(arrays["readings" if channel == "heated" else channel][:2000], dtype=np.float64)
+            # typical size of a contact's temperature change: the spread of record minus its start
+            swing = np.abs(readings - readings[..., :1]).max(axis=-1)
+            scales.append(max(float(np.median(swing[touched])) if touched.any() else 1.0, 0.1))
         return {
             "classes": list(class_names(scene)),
+            "channels": list(cfg.channels),
             "window": cfg.window_samples,
             "sampling_hz": cfg.readout.sampling_hz,
-            "scale_k": max(scale, 0.1),
+            "scale_k": scales[0],
+            "channel_scale_k": scales,
             "noise_k": cfg.readout.noise_k,
         }
 
@@ -454,12 +679,16 @@ class ThermalTask(Task):
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Windows of 4 random pixels of every touch, each ending a random time after its onset
         (uniform from 0.1 s up to the contact's end, at most ``window_s - 0.2`` s), plus a random
-        offset of the whole curve (absolute temperature carries no label).
+        offset of the whole curve (absolute temperature carries no label; with several channels the
+        same offset for all, so their difference is kept).
 
         Uniform, not log-uniform: a log-uniform half put most windows on the first few hundred
         milliseconds, where materials are least separable, and starved long contacts; on the
         seed's three materials that left the network behind the physics fit at 2 s (92 against
-        56 errors in 9,714 contact pixels); trained on uniform durations it makes 6."""
+        56 errors in 9,714 contact pixels); trained on uniform durations it makes 6.
+
+        A real-sensor scene's records start 0.3-3 s before their contact like a logger's that
+        starts on a trigger: samples before that repeat the first one, as real windows are padded."""
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
         width = cfg.window_samples
@@ -469,18 +698,28 @@ class ThermalTask(Task):
         keep = min(p, _TRAIN_PIXELS)
         pick = np.argsort(rng.random((b, p)), axis=1)[:, :keep]
         rows = (np.arange(b)[:, None] * p + pick).ravel()
-        records = readings.reshape(b * p, r)[rows]
         onset = np.asarray(arrays["latent_onset_s"], dtype=np.float64).reshape(-1)[rows]
         release = np.asarray(arrays["latent_release_s"], dtype=np.float64).reshape(-1)[rows]
         material = np.asarray(arrays["latent_material"]).reshape(-1)[rows]
-        labels = labels_from_materials(material, len(cfg.material_list))
-        p = keep
-        n = b * p
+        labels = labels_from_materials(material, len(cfg.material_list), cfg)
+        n = b * keep
         hi = np.maximum(np.minimum(release - onset, cfg.window_s - _TRAIN_BASE_S), _TRAIN_MIN_S + 1e-3)
         d = _TRAIN_MIN_S + rng.random(n) * (hi - _TRAIN_MIN_S)
         end = np.minimum(np.floor((onset + d) * fs).astype(np.int64) + 1, r)
-        x = windows(records, np.full(n, r), end, width)
-        x += rng.uniform(-3.0, 3.0, size=(n, 1)).astype(np.float32)
+        offset = rng.uniform(-3.0, 3.0, size=(n, 1)).astype(np.float32)
+        first = None
+        if cfg.dynamic:
+            lead = rng.uniform(*_RECORD_LEAD_S, size=n)
+            first = np.clip(np.floor((onset - lead) * fs).astype(np.int64), 0, r - 1)
+        parts = []
+        for channel in cfg.channels:
+            source = readings if channel == "heated" else np.asarray(arrays[channel], dtype=np.float32)
+            records = source.reshape(b * p, r)[rows]
+            if first is not None:  # the record starts at `first`: earlier samples repeat it
+                idx = np.maximum(np.arange(r)[None, :], first[:, None])
+                records = np.take_along_axis(records, idx, axis=1)
+            parts.append(windows(records, np.full(n, r), end, width) + offset)
+        x = parts[0] if len(parts) == 1 else np.stack(parts, axis=1)
         return x, {"label": labels}
 
     def build_net(self, size: str, scene: Scene, stats: dict[str, Any]) -> torch.nn.Module:

@@ -47,6 +47,8 @@ __all__ = [
     "Onset",
     "detect_onset",
     "drop_segments",
+    "heated_window",
+    "merge_classes",
     "nominal_sensor",
     "softmax",
 ]
@@ -262,10 +264,28 @@ class CurveMatchEstimator(Estimator):
         return scores, onset, best
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks.thermal import ThermalTask
-
-        x = ThermalTask().check_inputs(X, self.scene)
+        x = heated_window(X, self.scene)
         if len(x) == 0:
-            return np.zeros((0, len(self.scene.sensor.material_list) + 1), dtype=np.float32)
+            return np.zeros((0, len(self.scene.sensor.class_names) + 1), dtype=np.float32)
         scores, _, _ = self.scores(x)
-        return softmax(scores).astype(np.float32)
+        return merge_classes(softmax(scores), self.scene.sensor).astype(np.float32)
+
+
+def heated_window(X: np.ndarray, scene: Scene) -> np.ndarray:
+    """The checked input's heated channel (B, W): the seed's methods read that one only."""
+    from tactile_learn.tasks.thermal import ThermalTask
+
+    x = ThermalTask().check_inputs(X, scene)
+    return x[:, 0] if x.ndim == 3 else x
+
+
+def merge_classes(prob: np.ndarray, config: ThermalConfig) -> np.ndarray:
+    """Probabilities over materials (+ none) summed into the scene's classes (+ none)."""
+    if not config.objects.classes:
+        return prob
+    k = len(config.class_names)
+    out = np.zeros((len(prob), k + 1), dtype=prob.dtype)
+    for m, c in enumerate(config.class_of_material):
+        out[:, c] += prob[:, m]
+    out[:, k] = prob[:, -1]
+    return out

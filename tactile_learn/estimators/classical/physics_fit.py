@@ -45,7 +45,14 @@ from synth.materials import Material, get_material
 from synth.scene import Scene
 from synth.sensors.thermal import ContactModel, ThermalConfig, spreading_conductance
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.estimators.classical.curve_match import CurveMatchEstimator, detect_onset, nominal_sensor, softmax
+from tactile_learn.estimators.classical.curve_match import (
+    CurveMatchEstimator,
+    detect_onset,
+    heated_window,
+    merge_classes,
+    nominal_sensor,
+    softmax,
+)
 
 if TYPE_CHECKING:
     from tactile_learn.thermal_recordings import Touch
@@ -327,9 +334,7 @@ class PhysicsFitEstimator(Estimator):
         return CurveFit(theta, cov, chi2, onset.detected)
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks.thermal import ThermalTask
-
-        x = ThermalTask().check_inputs(X, self.scene).astype(np.float64)
+        x = heated_window(X, self.scene).astype(np.float64)
         k = len(self.scene.sensor.material_list)
         c, g, v0_range = self._sensor(len(x))
         out = np.zeros((len(x), k + 1), dtype=np.float32)
@@ -341,7 +346,7 @@ class PhysicsFitEstimator(Estimator):
             scores[~fit.detected] = -np.inf
             scores[~fit.detected, -1] = 0.0
             out[sl] = softmax(scores)
-        return out
+        return merge_classes(out, self.scene.sensor)
 
 
 # -------------------------------------------------------------------------------------------------

@@ -1,0 +1,178 @@
+"""Issue 11's protocol on the real robot recordings: label one session, classify every other touch.
+
+    python scripts/thermal_robot_protocol.py --label R_1 --json results/thermal_robot.json
+    python scripts/thermal_robot_protocol.py --label R_1,R_4,R_7 --json results/thermal_robot_sessions.json
+
+For every labelled session: ``adapt`` (calibrate on its 9 touches, simulate, train, validate on the
+labelled touches, export) once per channel set (heated only; heated + passive), then every method
+on every other touch of the folder: the learned model, the classical methods on the calibrated
+scene (curve_match and physics_fit: the seed's, heated only; calibrated: the fitted sensor model,
+every channel of the classifier), and the onset-aligned PCA baseline trained on the same labelled
+touches. Accuracy at 0.5 / 1 / 2 / 4 s of contact (the onset: the force's half-plateau crossing),
+overall and per condition (M metal, W wood, CW cooled wood). The data: ``--data``, else
+``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot`` beside the repository.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_learn.estimators.classical.aligned_pca import AlignedPca, aligned_curves
+from tactile_learn.methods import resolve_method
+from tactile_learn.runtime import OnnxEstimator
+from tactile_learn.tasks.thermal import ThermalTask, channel_keys
+from tactile_learn.thermal_adapt import CHANNEL_CHOICES, adapt_scene, calibrate_recordings, write_scene
+from tactile_learn.thermal_recordings import select_recordings
+
+DURATIONS = (0.5, 1.0, 2.0, 4.0)
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def robot_data(path: str | None = None) -> Path:
+    """The recordings folder: ``path``, ``$TACTILE_THERMAL_ROBOT`` or ``../shared/data/thermal-robot``."""
+    return Path(path or os.environ.get("TACTILE_THERMAL_ROBOT") or ROOT.parent / "shared" / "data" / "thermal-robot")
+
+
+def split(data: Path, labelled: str, out: Path) -> tuple[Path, Path]:
+    """Two recording folders under ``out``: the labelled session's touches and every other one."""
+    return (
+        select_recordings(data, out / "labelled", "session", [labelled]),
+        select_recordings(data, out / "test", "session", [labelled], keep=False),
+    )
+
+
+def _table(metrics: dict[str, Any]) -> dict[str, Any]:
+    out = {"all": {k: metrics["accuracy_by_duration"].get(k) for k in map(_key, DURATIONS)}}
+    for group, m in metrics.get("by_group", {}).items():
+        out[group] = {k: m["accuracy_by_duration"].get(k) for k in map(_key, DURATIONS)}
+    return out
+
+
+def _key(d: float) -> str:
+    return f"{d:g}" if d != int(d) else f"{d:.1f}"
+
+
+def pca_baseline(labelled: Path, test: Path, scene: Any) -> dict[str, Any]:
+    """The onset-aligned PCA + shrunk LDA baseline: one model per duration, trained on the
+    labelled touches' aligned curves of that duration (every channel of ``scene``)."""
+    task = ThermalTask()
+    train, data = task.load_eval_data(labelled, scene), task.load_eval_data(test, scene)
+    fs = scene.sensor.readout.sampling_hz
+    keys = channel_keys(scene.sensor)
+    k = len(scene.sensor.class_names)
+    groups = data.extra["info:condition"]
+    result: dict[str, Any] = {"all": {}}
+    for d in DURATIONS:
+        xa = aligned_curves([train.extra[c] for c in keys], train.extra["onset_s"], fs, d)
+        model = AlignedPca().fit(xa, train.truth["label"], k)
+        xb = aligned_curves([data.extra[c] for c in keys], data.extra["onset_s"], fs, d)
+        right = model.predict_proba(xb).argmax(axis=1) == data.truth["label"]
+        result["all"][_key(d)] = float(right.mean())
+        for g in sorted(set(groups)):
+            result.setdefault(g, {})[_key(d)] = float(right[groups == g].mean())
+    return result
+
+
+def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Namespace) -> dict[str, Any]:
+    labelled, test = split(data, labelled_session, work / labelled_session)
+    task = ThermalTask()
+    out: dict[str, Any] = {"labelled": labelled_session}
+    started = time.perf_counter()
+    scene_all, report = calibrate_recordings(labelled, CHANNEL_CHOICES["all"], seed=args.seed)
+    out["calibration_s"] = time.perf_counter() - started
+    out["calibration"] = {
+        "residual": report["residual"],
+        "at_bound": report["at_bound"],
+        "not_identified": report["not_identified"],
+        "parameters": {k: v["value"] for k, v in report["parameters"].items()},
+    }
+    write_scene(scene_all, work / labelled_session / "sensor.toml", report)
+    for channels in ("heated", "all"):
+        folder = work / labelled_session / channels
+        mark = time.perf_counter()
+        card = adapt_scene(
+            scene_all,
+            report,
+            labelled,
+            folder,
+            channels=channels,
+            n_train=args.n_train,
+            epochs=args.epochs,
+            seed=args.seed,
+            threads=args.threads,
+        )
+        seconds = time.perf_counter() - mark + out["calibration_s"]
+        model = OnnxEstimator(folder / "model.onnx")
+        scene = model.card_scene_
+        data_test = task.load_eval_data(test, scene)
+        methods: dict[str, Any] = {}
+        learned = task.evaluate(model, data_test, durations=DURATIONS, group_by="condition")
+        methods["learned"] = _table(learned)
+        for name in ("curve_match", "physics_fit", "calibrated"):
+            estimator = resolve_method("thermal", name, scene)
+            methods[name] = _table(task.evaluate(estimator, data_test, durations=DURATIONS, group_by="condition"))
+        methods["aligned_pca"] = pca_baseline(labelled, test, scene)
+        out[channels] = {
+            "methods": methods,
+            "adapt_seconds": seconds,
+            "labelled_accuracy": card["metrics"]["labelled_touches"]["values"]["accuracy_by_duration"],
+            "warnings": card["warnings"],
+            "n_test": len(data_test),
+        }
+        print(f"{labelled_session} {channels}: learned {methods['learned']['all']} ({seconds:.0f} s)", flush=True)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--data", default=None, help="the thermal-robot folder")
+    parser.add_argument("--label", default="R_1", help="labelled session(s), comma-separated (one run each)")
+    parser.add_argument("--n-train", type=int, default=16000)
+    parser.add_argument("--epochs", type=int, default=12)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--work", default=None, help="keep the runs here (default: a temporary folder)")
+    parser.add_argument("--json", default=None, help="write the results here")
+    args = parser.parse_args(argv)
+    data = robot_data(args.data)
+    if not (data / "touches.csv").is_file():
+        raise SystemExit(f"no recordings at {data} (give --data or set TACTILE_THERMAL_ROBOT)")
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(args.work) if args.work else Path(tmp)
+        for session in args.label.split(","):
+            results.append(run_session(data, session.strip(), work, args))
+    summary = {
+        "command": "python scripts/thermal_robot_protocol.py "
+        + " ".join(a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("/")),
+        "durations_s": list(DURATIONS),
+        "sessions": results,
+    }
+    text = json.dumps(summary, indent=2, default=float)
+    if args.json:
+        from synth.io import atomic_write_text
+
+        atomic_write_text(args.json, text + "\n")
+    for r in results:
+        for channels in ("heated", "all"):
+            print(f"\n{r['labelled']} labelled, channels {channels}: accuracy at {', '.join(map(_key, DURATIONS))} s")
+            for method, table in r[channels]["methods"].items():
+                cells = "  ".join(
+                    f"{g} " + "/".join(f"{table[g][_key(d)]:.2f}" for d in DURATIONS) for g in ("all", "M", "W", "CW")
+                )
+                print(f"  {method:12s} {cells}")
+    _ = np
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,175 @@
+"""Calibrated fit: the scene's full sensor model against every channel, object temperature unknown.
+
+The seed's methods read the heated curve alone with the seed's sensor (no lag, no heater control,
+a step contact). This one uses everything a calibrated scene knows (:mod:`synth.sensors.thermal_touch`):
+per class (its nominal effusivity), a small grid of the nuisances the scene leaves open (contact
+conductance, contact build-up, where the contact starts in the window), the basis curves of every
+input channel; then, per curve and template, linear least squares of
+
+    heated  = R0 + r drift + (R0 + r lead - T_obj) obj [- Q power]      passive = P0 + r_p drift_p + (...) obj_p
+
+over the window, with the object's temperature ``T_obj`` shared by the channels (the physics that
+lets a passive channel tell a cooled wood from a metal at room temperature), ``R0``, ``P0``, the
+drifts and, for a heater switched off on contact, the ambient it loses heat to, all free. A class's
+score is ``-min RSS / (2 sigma^2)`` over its templates (``sigma``: the scene's noise, at least
+10 mK: the calibration's model error), softmax over the classes and ``none`` (every channel a
+straight line, with curve matching's bonus). The contact's start is searched on a 0.2 s grid over
+the window (no onset detection: a drifting baseline fools threshold detectors, and the thermistors'
+lag puts the visible departure well after the touch).
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from synth.scene import Scene
+from synth.sensors.thermal import ThermalConfig, spreading_conductance
+from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
+
+__all__ = ["CalibratedFitEstimator"]
+
+#: smallest noise s.d. the scores assume (K): what a calibrated model leaves unexplained
+MODEL_ERROR_K = 0.01
+#: grid step (s) of the contact start searched over the window
+STEP_S = 0.2
+
+
+def _mid(bounds: tuple[float, float], log: bool = False) -> float:
+    lo, hi = bounds
+    return math.sqrt(lo * hi) if log and lo > 0 else 0.5 * (lo + hi)
+
+
+class CalibratedFitEstimator(Estimator):
+    """The scene's sensor model fitted per class to every input channel (see the module docstring)."""
+
+    task = "thermal"
+    name = "calibrated"
+
+    def __init__(self, scene: Scene, n_conductance: int = 3, n_ramp: int = 2, chunk: int = 256) -> None:
+        self.scene = scene
+        self.n_conductance = n_conductance
+        self.n_ramp = n_ramp
+        self.chunk = chunk
+
+    def fit(self, X: np.ndarray, y: Any = None) -> CalibratedFitEstimator:
+        return self
+
+    @cached_property
+    def templates_(self) -> tuple[np.ndarray, np.ndarray]:
+        """Basis columns (M, S, 3W + 1, 4) of every template, indexed by the sample relative to the
+        contact start (offset W), and each template's class (M,)."""
+        cfg: ThermalConfig = self.scene.sensor
+        sc, cc, pc = cfg.sensor, cfg.contact, cfg.passive
+        fs = cfg.readout.sampling_hz
+        w = cfg.window_samples
+        t = (np.arange(3 * w + 1) - w) / fs  # contacts up to a third of a window before its start
+        mats, of = cfg.material_list, cfg.class_of_material
+        hs = np.geomspace(*cc.conductance_w_m2k, self.n_conductance) if cc.conductance_w_m2k[0] > 0 else [1.0]
+        ramps = np.linspace(*cc.ramp_s, self.n_ramp)
+        radius = _mid(cc.radius_mm) * 1e-3
+        columns, owner = [], []
+        heater_off = sc.heater in ("off", "step")
+        for k in range(len(cfg.class_names)):
+            members = [m for m, c in zip(mats, of, strict=True) if c == k]
+            e = math.exp(float(np.mean([math.log(m.effusivity) for m in members])))
+            kk = math.exp(float(np.mean([math.log(m.k_w_mk) for m in members])))
+            ks = float(spreading_conductance(kk, radius)) if cc.spreading else 0.0
+            for h in hs:
+                for ramp in ramps:
+                    per_channel = []
+                    for channel in cfg.channels:
+                        if channel == "heated":
+                            cap, loss = _mid(sc.heat_capacity_j_m2k), _mid(sc.loss_w_m2k)
+                            lags = (_mid(sc.lag_s), _mid(sc.lag2_s))
+                            gains = (_mid(sc.controller_kp), _mid(sc.controller_ki))
+                            hh = h
+                        else:
+                            cap, loss = _mid(pc.heat_capacity_j_m2k), _mid(pc.loss_w_m2k)
+                            lags = (_mid(pc.lag_s), _mid(pc.lag2_s))
+                            gains = (0.0, 0.0)
+                            hh = _mid(pc.conductance_w_m2k, log=True) * h / _mid(cc.conductance_w_m2k, log=True)
+                        model = ChannelModel.create(
+                            heat_capacity=cap,
+                            loss=loss,
+                            conductance=hh,
+                            effusivity=e,
+                            spreading=ks,
+                            lag1_s=lags[0],
+                            lag2_s=lags[1],
+                            kp=gains[0],
+                            ki=gains[1],
+                        )
+                        off = np.array([_mid(sc.heater_off_s)]) if (heater_off and channel == "heated") else None
+                        terms = channel_terms(model, t[None, :], np.array([ramp]), off)
+                        lead = lags[0] + lags[1]
+                        drift = terms.drift[0] if sc.heater != "held" or channel != "heated" else 0.0 * t
+                        cols = [1.0 + terms.obj[0], drift + lead * terms.obj[0], -terms.obj[0], 0.0 * t]
+                        if terms.power is not None and sc.heater == "off":  # Q = G (R0 + r lead - T_amb) + C r
+                            cols[0] = cols[0] - loss * terms.power[0]
+                            cols[1] = cols[1] - (loss * lead + cap) * terms.power[0]
+                            cols[3] = loss * terms.power[0]
+                        elif terms.power is not None:  # step: the power change is a free amplitude
+                            cols[3] = terms.power[0]
+                        per_channel.append(np.stack(cols, axis=-1))
+                    columns.append(np.stack(per_channel))
+                    owner.append(k)
+        return np.stack(columns), np.array(owner)
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        from tactile_learn.tasks.thermal import ThermalTask
+
+        cfg: ThermalConfig = self.scene.sensor
+        x = ThermalTask().check_inputs(X, self.scene).astype(np.float64)
+        if x.ndim == 2:
+            x = x[:, None, :]
+        k = len(cfg.class_names)
+        out = np.zeros((len(x), k + 1), dtype=np.float32)
+        for start in range(0, len(x), self.chunk):
+            out[start : start + self.chunk] = self._predict(x[start : start + self.chunk])
+        return out
+
+    def _predict(self, x: np.ndarray) -> np.ndarray:
+        cfg: ThermalConfig = self.scene.sensor
+        fs = cfg.readout.sampling_hz
+        b, n_ch, w = x.shape
+        basis, owner = self.templates_
+        sigma = max(cfg.readout.noise_k, MODEL_ERROR_K)
+        k = len(cfg.class_names)
+        best = np.full((b, k), np.inf)
+        heater_off = cfg.sensor.heater in ("off", "step")
+        n_lin = 2 * n_ch + 1 + (1 if heater_off else 0)
+        y = x.reshape(b, n_ch * w)
+        step = max(1, round(STEP_S * fs))
+        for start in range(-w // 3, w - step, step):  # the contact's start, in samples of the window
+            rel = np.arange(w) - start + w  # index into the templates' time axis
+            for m in range(len(basis)):
+                cols = basis[m][:, rel]  # (S, W, 4): the same for every curve
+                a = np.zeros((n_ch * w, n_lin))
+                for c in range(n_ch):
+                    rows = slice(c * w, (c + 1) * w)
+                    a[rows, 2 * c] = cols[c, :, 0]
+                    a[rows, 2 * c + 1] = cols[c, :, 1]
+                    a[rows, 2 * n_ch] = cols[c, :, 2]
+                    if heater_off:
+                        a[rows, -1] = cols[c, :, 3]
+                # one design matrix for the whole batch: least squares of every curve at once
+                coef, *_ = np.linalg.lstsq(a, y.T, rcond=None)
+                rss = ((a @ coef - y.T) ** 2).sum(axis=0)
+                best[:, owner[m]] = np.minimum(best[:, owner[m]], rss)
+        # no contact: each channel a straight line
+        t = np.arange(w) / fs
+        line = np.zeros((n_ch * w, 2 * n_ch))
+        for c in range(n_ch):
+            line[c * w : (c + 1) * w, 2 * c] = 1.0
+            line[c * w : (c + 1) * w, 2 * c + 1] = t
+        coef, *_ = np.linalg.lstsq(line, y.T, rcond=None)
+        none = ((line @ coef - y.T) ** 2).sum(axis=0)
+        scores = np.concatenate([-best, -none[:, None]], axis=1) / (2 * sigma**2)
+        scores[:, -1] += NONE_BONUS
+        return softmax(scores)

@@ -1,0 +1,137 @@
+"""Test-only reference solver for a thermistor channel: finite volumes in the object, time by Radau.
+
+Independent of the closed forms in ``synth.sensors.thermal_dynamics``: the object is discretised
+on a geometrically graded grid (a 1-D slab, or a spherical cavity of radius ``k / k_s`` whose
+surface admittance is exactly ``e sqrt(s) + k_s``); the sensor node, the thermistor's lag states
+and the controller's integral are extra states of one linear system ``y' = A y + b``, ``y(0) = 0``
+(deviations from the pre-contact equilibrium), integrated by a stiff implicit solver with tight tolerances.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import integrate, sparse
+
+
+def reference_channel(
+    t: np.ndarray,
+    *,
+    heat_capacity: float,
+    loss: float,
+    conductance: float,
+    k_w_mk: float,
+    diffusivity_m2_s: float,
+    spreading: float = 0.0,
+    lag1_s: float = 0.0,
+    lag2_s: float = 0.0,
+    kp: float = 0.0,
+    ki: float = 0.0,
+    v0: float = 1.0,
+    drift_k_s: float = 0.0,
+    power_step: float = 0.0,
+    power_step_s: float = 0.0,
+    cells: int = 300,
+) -> np.ndarray:
+    """Reading deviation from its value at the contact onset, at times ``t`` (s, increasing, > 0).
+
+    ``drift_k_s``: before contact the body ramped at this rate under a net heating ``C r`` that goes
+    on after it, and the lag states trail the body by their time constants (open loop only);
+    ``power_step`` (W/m^2): the heater's power changes by this much at ``power_step_s`` (>= 0).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    alpha = diffusivity_m2_s
+    first = min(np.sqrt(alpha * t.min()) / 40, 0.1 * k_w_mk / conductance)
+    length = 12 * np.sqrt(alpha * t.max())
+    widths = first * ((length / first) ** (1.0 / cells)) ** np.arange(cells)
+    faces = np.concatenate([[0.0], np.cumsum(widths)])
+    centres = 0.5 * (faces[1:] + faces[:-1])
+    if spreading > 0:
+        a = k_w_mk / spreading
+        area = ((a + faces) / a) ** 2
+        volume = ((a + faces[1:]) ** 3 - (a + faces[:-1]) ** 3) / (3 * a**2)
+        radius = a + centres
+    else:
+        area = np.ones_like(faces)
+        volume = widths.copy()
+        radius = centres
+    rho_c = k_w_mk / alpha
+    # states: 0 sensor u, 1..cells object cells, then lag states, then the controller's integral
+    lags = [tau for tau in (lag1_s, lag2_s) if tau > 0]
+    n = 1 + cells + len(lags) + (1 if ki > 0 else 0)
+    a_mat = np.zeros((n, n))
+    b = np.zeros(n)
+    g0 = 1.0 / (1.0 / conductance + widths[0] / (2 * k_w_mk))
+    links = k_w_mk * area[1:cells] / np.diff(radius)
+    # sensor: C u' = dQ - G u - g0 (V0 + u - theta_1)
+    a_mat[0, 0] = -(loss + g0) / heat_capacity
+    a_mat[0, 1] = g0 / heat_capacity
+    b[0] = -g0 * v0 / heat_capacity
+    # object cells (far end held at the object's temperature)
+    cap = rho_c * volume
+    for i in range(cells):
+        row = 1 + i
+        if i == 0:
+            a_mat[row, 0] += g0 / cap[0]
+            a_mat[row, row] -= g0 / cap[0]
+            b[row] += g0 * v0 / cap[0]
+        if i > 0:
+            a_mat[row, row - 1] += links[i - 1] / cap[i]
+            a_mat[row, row] -= links[i - 1] / cap[i]
+        if i < cells - 1:
+            a_mat[row, row + 1] += links[i] / cap[i]
+            a_mat[row, row] -= links[i] / cap[i]
+        else:
+            a_mat[row, row] -= k_w_mk * area[cells] / (faces[cells] - centres[-1]) / cap[i]
+    # lag chain: tau r_k' = r_{k-1} - r_k, r_0 = u
+    prev = 0
+    for j, tau in enumerate(lags):
+        row = 1 + cells + j
+        a_mat[row, prev] += 1.0 / tau
+        a_mat[row, row] -= 1.0 / tau
+        prev = row
+    reading = prev
+    # controller dQ = -kp r - ki I, I' = r
+    a_mat[0, reading] -= kp / heat_capacity
+    if ki > 0:
+        row = n - 1
+        a_mat[0, row] -= ki / heat_capacity
+        a_mat[row, reading] += 1.0
+    # the ramp before contact: a net heating C r goes on; lag state k trails the body by the sum of
+    # the time constants up to it (a first-order chain in a steady ramp)
+    y0 = np.zeros(n)
+    b[0] += drift_k_s  # S / C = r
+    trail = 0.0
+    for j, tau in enumerate(lags):
+        trail += tau
+        y0[1 + cells + j] = -drift_k_s * trail
+    # a stiff implicit integrator (Radau, tight tolerances, the constant Jacobian given): no
+    # eigen-decomposition, so equal lags (a Jordan block) need no special case
+    jac = sparse.csr_matrix(a_mat)  # tridiagonal plus a few entries: sparse LU in every step
+    scale = max(abs(v0), abs(drift_k_s), abs(power_step) / heat_capacity, 1.0)
+    step_at = power_step_s if power_step else float(t.max())
+    pieces = [(0.0, min(step_at, float(t.max())), b)]
+    if power_step and step_at < t.max():
+        b_after = b.copy()
+        b_after[0] += power_step / heat_capacity
+        pieces.append((step_at, float(t.max()), b_after))
+    out = np.empty(len(t))
+    y = y0
+    for start, stop, rhs in pieces:
+        inside = (t >= start) & (t <= stop)
+        if stop <= start:
+            continue
+        sol = integrate.solve_ivp(
+            lambda _t, y_, rhs=rhs: jac @ y_ + rhs,
+            (start, stop),
+            y,
+            method="Radau",
+            t_eval=np.concatenate([t[inside], [stop]]) if not inside.any() or t[inside][-1] < stop else t[inside],
+            rtol=1e-9,
+            atol=1e-12 * scale,
+            jac=jac,
+        )
+        if not sol.success:  # pragma: no cover - a failure of the reference itself
+            raise RuntimeError(sol.message)
+        out[inside] = sol.y[reading][: inside.sum()]
+        y = sol.y[:, -1]
+    return np.asarray(out) + drift_k_s * sum(lags)  # relative to the reading at the onset
