@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 
 from synth.config import dumps_toml
-from synth.errors import ConfigError, TactileError
+from synth.errors import ConfigError, InputError, TactileError
 from synth.io import atomic_write_json, atomic_write_text
 from synth.scene import Scene, load_scene, parse_scene, read_toml
 
@@ -239,7 +239,8 @@ def run_point(
         atomic_write_text(out / "scene.toml", dumps_toml(scene.to_dict()))
         result.update(scene=scene.to_dict(), scene_digest=scene.digest, wires=wire_count(scene), seeds=seeds)
         generate(scene, bud.test, seeds["test"], out / "test")
-        data = task.load_eval_data(out / "test")
+        data, unreadable = _readable_frames(task, task.load_eval_data(out / "test"))
+        result["unreadable"] = unreadable
         methods: dict[str, Any] = {name: resolve_method(scene.task, name, scene) for name in bud.methods}
         if bud.train:
             from tactile_learn.export import export
@@ -284,6 +285,23 @@ def run_point(
     result["seconds"] = time.perf_counter() - started
     atomic_write_json(out / RESULT, result)
     return result
+
+
+def _readable_frames(task: Any, data: Any) -> tuple[Any, dict[str, Any]]:
+    """The test frames every method can read, and what was left out. A design whose ADC saturates
+    under strong presses (few bits, a thin cover) makes frames no estimator may read (their loads
+    are unknown); they are a property of the design, counted in the result rather than failing it."""
+    keep = np.ones(len(data), bool)
+    reason = ""
+    for i in range(len(data)):
+        try:
+            task.check_inputs(data.inputs[i : i + 1], data.scene)
+        except InputError as exc:
+            keep[i] = False
+            reason = reason or str(exc)
+    if not keep.any():
+        raise InputError(f"no test frame can be read by this design ({reason})")
+    return data.subset(np.flatnonzero(keep)), {"share": float(1 - keep.mean()), "first_reason": reason}
 
 
 def run_sweep(
@@ -349,23 +367,23 @@ def run_sweep(
     return summary
 
 
-def _best_method(point: dict[str, Any]) -> tuple[str, dict[str, Any]] | None:
-    rows = point.get("methods") or {}
-    if not rows:
-        return None
+def _best_method(point: dict[str, Any]) -> tuple[str, dict[str, Any]]:
+    """The point's method with the highest r (only called on finished points, which have methods)."""
+    rows = point["methods"]
     name = max(rows, key=lambda m: rows[m].get("pearson_r_mean", -1.0))
     return name, rows[name]
 
 
 def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per wire budget (each wire count the sweep tried): the design with the highest r that needs
-    no more wires, and the method that reaches it."""
+    no more wires, and the method that reaches it. A frame the design cannot read (a saturated ADC)
+    gives no map: it counts as r = 0, so r is scaled by the share of readable frames."""
     ok = [p for p in points if p.get("status") == "ok" and p.get("methods")]
     out = []
     for budget in sorted({int(p["wires"]) for p in ok}):
         candidates = [p for p in ok if p["wires"] <= budget]
-        best = max(candidates, key=lambda p: _best_method(p)[1]["pearson_r_mean"])  # type: ignore[index]
-        method, row = _best_method(best)  # type: ignore[misc]
+        best = max(candidates, key=lambda p: _effective_r(p, _best_method(p)[1]))
+        method, row = _best_method(best)
         out.append(
             {
                 "wire_budget": budget,
@@ -374,6 +392,8 @@ def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "wires": best["wires"],
                 "method": method,
                 "pearson_r_mean": row["pearson_r_mean"],
+                "pearson_r_effective": _effective_r(best, row),
+                "unreadable_share": _unreadable(best),
                 "nrmse": row.get("nrmse"),
                 "latency_us_p50_b1": row["latency_us_p50_b1"],
             }
@@ -381,31 +401,49 @@ def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def _unreadable(point: Mapping[str, Any]) -> float:
+    return float(point.get("unreadable", {}).get("share", 0.0))
+
+
+def _effective_r(point: Mapping[str, Any], row: Mapping[str, Any]) -> float:
+    return float(row["pearson_r_mean"]) * (1.0 - _unreadable(point))
+
+
 def markdown(summary: dict[str, Any]) -> str:
     keys = list(summary["parameters"])
     lines = [
         f"# Sweep {summary['sweep']} (base {summary['base']}, {summary['n_points']} points, {summary['mode']})",
         "",
-        "| point | " + " | ".join(keys) + " | wires | method | r mean | NRMSE | latency b1 (us) |",
-        "|---|" + "---|" * len(keys) + "---:|---|---:|---:|---:|",
+        "r and NRMSE over the frames the design can read; saturated: the share of test frames whose"
+        " readings reach the ADC's full scale (no map; counted as r = 0 in the recommendation).",
+        "",
+        "| point | " + " | ".join(keys) + " | wires | saturated | method | r mean | NRMSE | latency b1 (us) |",
+        "|---|" + "---|" * len(keys) + "---:|---:|---|---:|---:|---:|",
     ]
     for p in sorted(summary["points"], key=lambda q: (q.get("wires", 0), q["id"])):
         vals = " | ".join(str(p["values"].get(k)) for k in keys)
         if p.get("status") != "ok":
-            lines.append(f"| {p['id']} | {vals} | - | failed: {p.get('error', '')[:80]} | | | |")
+            lines.append(f"| {p['id']} | {vals} | - | - | failed: {p.get('error', '')[:80]} | | | |")
             continue
         for name, row in p["methods"].items():
             lines.append(
-                f"| {p['id']} | {vals} | {p['wires']} | {name} | {row.get('pearson_r_mean', float('nan')):.3f} | "
+                f"| {p['id']} | {vals} | {p['wires']} | {_unreadable(p):.1%} | {name} | "
+                f"{row.get('pearson_r_mean', float('nan')):.3f} | "
                 f"{row.get('nrmse', float('nan')):.3f} | {row['latency_us_p50_b1']:.0f} |"
             )
-    lines += ["", "## Recommended design per wire budget", "", "| wires at most | design | method | r mean | NRMSE |"]
-    lines.append("|---:|---|---|---:|---:|")
+    lines += [
+        "",
+        "## Recommended design per wire budget",
+        "",
+        "| wires at most | design | method | r mean | r (saturated = 0) | NRMSE | latency b1 (us) |",
+        "|---:|---|---|---:|---:|---:|---:|",
+    ]
     for rec in summary["recommended"]:
         design = ", ".join(f"{k}={v}" for k, v in rec["values"].items())
         lines.append(
             f"| {rec['wire_budget']} | {design} ({rec['wires']} wires) | {rec['method']} | "
-            f"{rec['pearson_r_mean']:.3f} | {rec['nrmse']:.3f} |"
+            f"{rec['pearson_r_mean']:.3f} | {rec['pearson_r_effective']:.3f} | {rec['nrmse']:.3f} | "
+            f"{rec['latency_us_p50_b1']:.0f} |"
         )
     return "\n".join(lines) + "\n"
 

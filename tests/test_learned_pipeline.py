@@ -14,6 +14,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip("torch", reason="torch (training extra) is not installed: nothing here runs without it")
+
 import torch
 
 from synth.dataset import generate

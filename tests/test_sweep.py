@@ -83,3 +83,42 @@ def test_sweep_runs_on_a_local_cluster_and_resumes(tmp_path: Path) -> None:
     assert main(["sweep", "--config", str(config), "--out", str(out), "--workers", "2", "--no-report"]) == 0
     again = json.loads((out / "sweep.json").read_text())
     assert again["computed_now"] == 0 and again["points"] == summary["points"]
+
+
+def test_saturated_frames_are_counted_not_fatal_and_lower_the_recommendation() -> None:
+    import numpy as np
+
+    from synth.dataset import simulate_shard
+    from synth.scene import load_scene
+    from tactile_learn.sweep import _readable_frames, recommend
+    from tactile_learn.tasks import get_task
+    from tactile_learn.tasks.base import EvalData
+
+    scene = load_scene("strips5")
+    task = get_task("strips")
+    arrays = simulate_shard(scene, 0, 0, 10)
+    data = EvalData(inputs=arrays["readings"].copy(), truth={"pressure": arrays["pressure"]}, scene=scene)
+    data.inputs[[2, 7], 0] = scene.sensor.readout.full_scale_v  # two frames reach the ADC's top
+    kept, unreadable = _readable_frames(task, data)
+    assert len(kept) == 8 and unreadable["share"] == pytest.approx(0.2)
+    assert "saturated" in unreadable["first_reason"]
+    np.testing.assert_array_equal(kept.inputs, np.delete(data.inputs, [2, 7], axis=0))
+
+    row = {"pearson_r_mean": 0.9, "latency_us_p50_b1": 1.0}
+    clean = {
+        "id": "a",
+        "status": "ok",
+        "wires": 8,
+        "values": {"x": 1},
+        "methods": {"m": {**row, "pearson_r_mean": 0.8}},
+    }
+    saturating = {
+        "id": "b",
+        "status": "ok",
+        "wires": 8,
+        "values": {"x": 2},
+        "methods": {"m": row},
+        "unreadable": unreadable,
+    }
+    (best,) = recommend([clean, saturating])  # 0.9 on 80 % of the frames loses to 0.8 on all of them
+    assert best["point"] == "a" and best["pearson_r_effective"] == pytest.approx(0.8)
