@@ -448,7 +448,7 @@ class ThermalTask(Task):
         return np.where(onset.detected, (onset.index + 0.5) / fs, 0.0)
 
     def _from_recordings(self, path: Path, scene: Scene) -> EvalData:
-        from tactile_learn.thermal_recordings import press_onset, read_recordings, resample_channel
+        from tactile_learn.thermal_recordings import press_onset, press_profile, read_recordings, resample_channel
 
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
@@ -471,6 +471,17 @@ class ThermalTask(Task):
                 records[i, len(v) :] = v[-1]
             extra[key] = records
         detected = self._detect_onsets(extra["record"], cfg)
+        # the press (force / its plateau) on the same grid, for methods that time the contact by it
+        press = np.zeros((len(touches), r), dtype=np.float32)
+        has_press = np.zeros(len(touches), dtype=bool)
+        for i, t in enumerate(touches):
+            profile = press_profile(t.time_s, t.force) if t.force is not None else None
+            if profile is not None:
+                values = np.interp(t.time_s[0] + np.arange(lengths[i]) / fs, t.time_s, profile)
+                press[i, : len(values)] = values
+                press[i, len(values) :] = values[-1]
+                has_press[i] = True
+        extra.update(press=press, has_press=has_press)
         onset = np.empty(len(touches))
         source = np.empty(len(touches), dtype=object)
         for i, t in enumerate(touches):

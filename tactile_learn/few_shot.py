@@ -1,0 +1,53 @@
+"""Classifiers trained on a handful of labelled real touches alone (no simulator): the baselines
+beside ``adapt`` on real recordings, and the heated-only classifier that holds when the press
+speed changes between sessions.
+
+``aligned_pca``: onset-aligned curves, PCA + shrunk linear discriminant
+(:mod:`tactile_learn.estimators.classical.aligned_pca`); ``press_aligned``: curves read against
+press time (the force's running integral), nearest labelled touch
+(:mod:`tactile_learn.estimators.classical.press_aligned`). One model per duration of contact.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from synth.errors import ConfigError
+from tactile_learn.estimators.classical.aligned_pca import AlignedPca, aligned_curves
+from tactile_learn.estimators.classical.press_aligned import NearestTouch, press_aligned_features
+from tactile_learn.tasks.base import EvalData
+from tactile_learn.tasks.thermal import channel_keys
+
+__all__ = ["FEW_SHOT_METHODS", "few_shot_features", "few_shot_predict"]
+
+FEW_SHOT_METHODS = ("aligned_pca", "press_aligned")
+
+
+def _check(method: str) -> None:
+    if method not in FEW_SHOT_METHODS:
+        raise ConfigError(f"few-shot method {method!r} is not one of {', '.join(FEW_SHOT_METHODS)}")
+
+
+def few_shot_features(method: str, data: EvalData, duration_s: float) -> np.ndarray:
+    """Features of every touch of ``data`` (recordings read by ``ThermalTask.load_eval_data``,
+    every channel of its scene) read up to ``duration_s`` after the onset."""
+    _check(method)
+    fs = data.scene.sensor.readout.sampling_hz
+    records = [data.extra[key] for key in channel_keys(data.scene.sensor)]
+    onset = data.extra["onset_s"]
+    if method == "aligned_pca":
+        return aligned_curves(records, onset, fs, duration_s)
+    return press_aligned_features(records, data.extra["press"], data.extra["has_press"], onset, fs, duration_s)
+
+
+def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: float) -> np.ndarray:
+    """Class probabilities (N, K) of the touches of ``data`` by ``method`` trained on the labelled
+    touches of ``train`` (same scene), both read up to ``duration_s`` after their onsets."""
+    _check(method)
+    keep = train.extra["labelled"]
+    if not keep.any():
+        raise ConfigError(f"{train.source}: no labelled touch to train the {method} classifier on")
+    k = len(train.scene.sensor.class_names)
+    model = AlignedPca() if method == "aligned_pca" else NearestTouch()
+    model.fit(few_shot_features(method, train, duration_s)[keep], train.truth["label"][keep], k)
+    return model.predict_proba(few_shot_features(method, data, duration_s))
