@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict, leave_one_out
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
@@ -63,12 +63,14 @@ def _key(d: float) -> str:
 
 def few_shot(labelled: Path, test: Path, scene: Any, method: str) -> dict[str, Any]:
     """A classifier trained on the labelled touches alone (:mod:`tactile_learn.few_shot`), one
-    model per duration, on every channel of ``scene``."""
+    model per duration, on every channel of ``scene``; with its leave-one-out accuracy on the
+    labelled touches (what a user can check without the other sessions)."""
     task = ThermalTask()
     train, data = task.load_eval_data(labelled, scene), task.load_eval_data(test, scene)
     groups = data.extra["info:condition"]
-    result: dict[str, Any] = {"all": {}}
+    result: dict[str, Any] = {"all": {}, "leave_one_out": {}}
     for d in DURATIONS:
+        result["leave_one_out"][_key(d)] = leave_one_out(method, train, d)
         right = few_shot_predict(method, train, data, d).argmax(axis=1) == data.truth["label"]
         result["all"][_key(d)] = float(right.mean())
         for g in sorted(set(groups)):
@@ -164,6 +166,12 @@ def main(argv: list[str] | None = None) -> int:
                 cells = "  ".join(
                     f"{g} " + "/".join(f"{table[g][_key(d)]:.2f}" for d in DURATIONS) for g in ("all", "M", "W", "CW")
                 )
+                if "leave_one_out" in table:  # the few-shot methods: their check on the labelled touches
+                    cells += (
+                        "  (leave-one-out "
+                        + "/".join(f"{table['leave_one_out'][_key(d)]:.2f}" for d in DURATIONS)
+                        + ")"
+                    )
                 print(f"  {method:12s} {cells}")
     return 0
 

@@ -18,7 +18,7 @@ from tactile_learn.estimators.classical.press_aligned import NearestTouch, press
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.tasks.thermal import channel_keys
 
-__all__ = ["FEW_SHOT_METHODS", "few_shot_features", "few_shot_predict"]
+__all__ = ["FEW_SHOT_METHODS", "few_shot_features", "few_shot_predict", "leave_one_out"]
 
 FEW_SHOT_METHODS = ("aligned_pca", "press_aligned")
 
@@ -51,3 +51,17 @@ def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: f
     model = AlignedPca() if method == "aligned_pca" else NearestTouch()
     model.fit(few_shot_features(method, train, duration_s)[keep], train.truth["label"][keep], k)
     return model.predict_proba(few_shot_features(method, data, duration_s))
+
+
+def leave_one_out(method: str, train: EvalData, duration_s: float) -> float:
+    """Accuracy of ``method`` on each labelled touch of ``train`` when trained on the others: how a
+    user with one labelled session chooses a method (or its settings) without touching the rest."""
+    labelled = np.flatnonzero(train.extra["labelled"])
+    if len(labelled) < 3:
+        raise ConfigError(f"{train.source}: leave-one-out needs 3 or more labelled touches, got {len(labelled)}")
+    right = []
+    for i in labelled:
+        others = train.subset(labelled[labelled != i])
+        proba = few_shot_predict(method, others, train.subset(np.array([i])), duration_s)
+        right.append(int(proba.argmax(axis=1)[0]) == int(train.truth["label"][i]))
+    return float(np.mean(right))

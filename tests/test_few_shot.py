@@ -3,13 +3,16 @@ with the press speed, the nearest labelled touch on classes with two modes, and 
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from synth.errors import ConfigError
 from tactile_learn.estimators.classical.aligned_pca import aligned_curves
 from tactile_learn.estimators.classical.press_aligned import NearestTouch, press_aligned_features, press_time
-from tactile_learn.few_shot import few_shot_predict
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict, leave_one_out
 from tactile_learn.thermal_recordings import press_onset, press_profile
 
 FS = 200.0
@@ -73,7 +76,7 @@ def test_press_profile_and_errors() -> None:
         press_aligned_features([T[None]], T[None], np.array([True]), np.array([1.0]), FS, 1.0, points=1)
 
 
-def test_few_shot_predict_names_its_problem(tmp_path: object) -> None:
+def test_few_shot_predict_names_its_problem() -> None:
     from tactile_learn.tasks.base import EvalData
 
     class _Scene:
@@ -85,3 +88,29 @@ def test_few_shot_predict_names_its_problem(tmp_path: object) -> None:
         few_shot_predict("press_aligned", data, data, 1.0)
     with pytest.raises(ConfigError, match="not one of"):
         few_shot_predict("svm", data, data, 1.0)
+    with pytest.raises(ConfigError, match="3 or more"):
+        leave_one_out("press_aligned", data, 1.0)
+
+
+def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> None:
+    """Recordings as a user writes them (force column, labels): both few-shot methods train on one
+    set of simulated touches and classify another (a different seed) by more than chance; the
+    leave-one-out check runs on the labelled touches alone and is a fraction."""
+    from synth.config import replace
+    from tactile_learn.tasks.thermal import ThermalTask
+    from tactile_learn.thermal_recordings import write_recordings
+    from tests.test_thermal_real import robot_scene, robot_touches
+
+    scene = robot_scene()
+    heated = dataclasses.replace(scene, sensor=replace(scene.sensor, "channels", ["heated"]))  # type: ignore[arg-type]
+    write_recordings(tmp_path / "train", robot_touches(12, 5))
+    write_recordings(tmp_path / "test", robot_touches(30, 6))
+    task = ThermalTask()
+    train, test = task.load_eval_data(tmp_path / "train", heated), task.load_eval_data(tmp_path / "test", heated)
+    assert train.extra["has_press"].all() and train.extra["press"].max() == pytest.approx(1.0, abs=0.05)
+    for method in FEW_SHOT_METHODS:
+        proba = few_shot_predict(method, train, test, 4.0)
+        assert proba.shape == (30, 2) and np.isfinite(proba).all()
+        assert (proba.argmax(axis=1) == test.truth["label"]).mean() > 0.6, method
+        loo = leave_one_out(method, train, 4.0)
+        assert 0.0 <= loo <= 1.0
