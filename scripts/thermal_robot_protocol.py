@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict, leave_one_out
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_evaluate
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
@@ -67,15 +67,8 @@ def few_shot(labelled: Path, test: Path, scene: Any, method: str) -> dict[str, A
     labelled touches (what a user can check without the other sessions)."""
     task = ThermalTask()
     train, data = task.load_eval_data(labelled, scene), task.load_eval_data(test, scene)
-    groups = data.extra["info:condition"]
-    result: dict[str, Any] = {"all": {}, "leave_one_out": {}}
-    for d in DURATIONS:
-        result["leave_one_out"][_key(d)] = leave_one_out(method, train, d)
-        right = few_shot_predict(method, train, data, d).argmax(axis=1) == data.truth["label"]
-        result["all"][_key(d)] = float(right.mean())
-        for g in sorted(set(groups)):
-            result.setdefault(g, {})[_key(d)] = float(right[groups == g].mean())
-    return result
+    metrics = few_shot_evaluate(method, train, data, DURATIONS, "condition")
+    return {**_table(metrics), "leave_one_out": metrics["leave_one_out_by_duration"]}
 
 
 def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Namespace) -> dict[str, Any]:

@@ -10,15 +10,18 @@ press time (the force's running integral), nearest labelled touch
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from synth.errors import ConfigError
 from tactile_learn.estimators.classical.aligned_pca import AlignedPca, aligned_curves
 from tactile_learn.estimators.classical.press_aligned import NearestTouch, press_aligned_features
 from tactile_learn.tasks.base import EvalData
-from tactile_learn.tasks.thermal import channel_keys
+from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask, _key, channel_keys
 
-__all__ = ["FEW_SHOT_METHODS", "few_shot_features", "few_shot_predict", "leave_one_out"]
+__all__ = ["FEW_SHOT_METHODS", "few_shot_evaluate", "few_shot_features", "few_shot_predict", "leave_one_out"]
 
 FEW_SHOT_METHODS = ("aligned_pca", "press_aligned")
 
@@ -65,3 +68,28 @@ def leave_one_out(method: str, train: EvalData, duration_s: float) -> float:
         proba = few_shot_predict(method, others, train.subset(np.array([i])), duration_s)
         right.append(int(proba.argmax(axis=1)[0]) == int(train.truth["label"][i]))
     return float(np.mean(right))
+
+
+def few_shot_evaluate(
+    method: str,
+    train: EvalData,
+    data: EvalData,
+    durations: Sequence[float] | None = None,
+    group_by: str | None = None,
+) -> dict[str, Any]:
+    """``ThermalTask.evaluate``'s metrics (``accuracy_by_duration``, ``by_group``, ...) of ``method``
+    trained on the labelled touches of ``train``, one model per duration, on the touches of
+    ``data``; plus ``leave_one_out_by_duration`` on ``train`` (the user's own check)."""
+    _check(method)
+    if train.scene.sensor.class_names != data.scene.sensor.class_names:
+        raise ConfigError("few-shot: the labelled touches and the touches to classify are read with different classes")
+
+    def predict(duration_s: float, windows: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        proba = few_shot_predict(method, train, data.subset(rows), duration_s)
+        return np.concatenate([proba, np.zeros((len(proba), 1))], axis=1)  # never "no contact"
+
+    durations = tuple(DURATIONS_S if durations is None else durations)
+    metrics = ThermalTask().evaluate_by_duration(predict, data, durations, group_by)
+    metrics["leave_one_out_by_duration"] = {_key(d): leave_one_out(method, train, d) for d in durations}
+    metrics["n_labelled"] = int(np.count_nonzero(train.extra["labelled"]))
+    return metrics

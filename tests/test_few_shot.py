@@ -4,6 +4,7 @@ with the press speed, the nearest labelled touch on classes with two modes, and 
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -97,7 +98,9 @@ def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> 
     set of simulated touches and classify another (a different seed) by more than chance; the
     leave-one-out check runs on the labelled touches alone and is a fraction."""
     from synth.config import replace
+    from tactile_learn.cli import main
     from tactile_learn.tasks.thermal import ThermalTask
+    from tactile_learn.thermal_adapt import write_scene
     from tactile_learn.thermal_recordings import write_recordings
     from tests.test_thermal_real import robot_scene, robot_touches
 
@@ -114,3 +117,13 @@ def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> 
         assert (proba.argmax(axis=1) == test.truth["label"]).mean() > 0.6, method
         loo = leave_one_out(method, train, 4.0)
         assert 0.0 <= loo <= 1.0
+    # the same from the command line, with the scene a user's calibration writes
+    write_scene(heated, tmp_path / "sensor.toml")
+    args = ["eval", "--task", "thermal", "--data", str(tmp_path / "test"), "--method", "press_aligned"]
+    args += ["--scene", str(tmp_path / "sensor.toml"), "--durations", "1,4", "--group-by", "condition"]
+    assert main([*args, "--train", str(tmp_path / "train"), "--json", str(tmp_path / "out.json")]) == 0
+    metrics = json.loads((tmp_path / "out.json").read_text())["metrics"]
+    assert set(metrics["accuracy_by_duration"]) == {"1.0", "4.0"} == set(metrics["leave_one_out_by_duration"])
+    assert metrics["accuracy_by_duration"]["4.0"] > 0.6 and set(metrics["by_group"]) == {"cold", "room"}
+    assert main(args) == 2  # no --train: a clear error
+    assert main([*args[:-4], "--method", "curve_match", "--train", str(tmp_path / "train")]) == 2

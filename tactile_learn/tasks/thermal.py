@@ -545,6 +545,18 @@ class ThermalTask(Task):
         same metrics per value of that column under ``by_group``."""
         if "record" not in data.extra:
             return self.metrics(estimator.predict(data.inputs), data)
+        return self.evaluate_by_duration(lambda d, x, rows: estimator.predict(x), data, durations, group_by)
+
+    def evaluate_by_duration(
+        self,
+        predict: Callable[[float, np.ndarray, np.ndarray], np.ndarray],
+        data: EvalData,
+        durations: Sequence[float] | None = None,
+        group_by: str | None = None,
+    ) -> dict[str, Any]:
+        """:meth:`evaluate` for any ``predict(duration_s, windows, rows)`` giving (n, K + 1) scores
+        of the touches ``rows`` of ``data`` (their ``windows`` of that duration): a method that
+        reads more than the windows (e.g. the force record) or has one model per duration."""
         durations = tuple(DURATIONS_S if durations is None else durations)
         groups = _groups(data, group_by) if group_by else None
         keep_all = data.extra.get("labelled", np.ones(len(data), dtype=bool))
@@ -553,7 +565,8 @@ class ThermalTask(Task):
             x, valid = view(data, d)
             keep = valid & keep_all
             if keep.any():
-                preds[_key(d)] = (np.flatnonzero(keep), estimator.predict(x[keep]))
+                rows = np.flatnonzero(keep)
+                preds[_key(d)] = (rows, predict(d, x[keep], rows))
         result = self._summary(data, preds, np.ones(len(data), dtype=bool))
         if groups is not None:
             result["by_group"] = {
