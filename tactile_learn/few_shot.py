@@ -31,6 +31,11 @@ def _check(method: str) -> None:
         raise ConfigError(f"few-shot method {method!r} is not one of {', '.join(FEW_SHOT_METHODS)}")
 
 
+def _labelled(data: EvalData) -> np.ndarray:
+    """Which touches carry a label (recordings may hold unlabelled ones; simulated touches all do)."""
+    return np.asarray(data.extra.get("labelled", np.ones(len(data), dtype=bool)), dtype=bool)
+
+
 def few_shot_features(method: str, data: EvalData, duration_s: float) -> np.ndarray:
     """Features of every touch of ``data`` (recordings read by ``ThermalTask.load_eval_data``,
     every channel of its scene) read up to ``duration_s`` after the onset."""
@@ -40,14 +45,18 @@ def few_shot_features(method: str, data: EvalData, duration_s: float) -> np.ndar
     onset = data.extra["onset_s"]
     if method == "aligned_pca":
         return aligned_curves(records, onset, fs, duration_s)
-    return press_aligned_features(records, data.extra["press"], data.extra["has_press"], onset, fs, duration_s)
+    if "press" not in data.extra:  # simulated touches carry no force record: clock time from the onset
+        press, has_press = np.zeros_like(records[0]), np.zeros(len(data), dtype=bool)
+    else:
+        press, has_press = data.extra["press"], data.extra["has_press"]
+    return press_aligned_features(records, press, has_press, onset, fs, duration_s)
 
 
 def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: float) -> np.ndarray:
     """Class probabilities (N, K) of the touches of ``data`` by ``method`` trained on the labelled
     touches of ``train`` (same scene), both read up to ``duration_s`` after their onsets."""
     _check(method)
-    keep = train.extra["labelled"]
+    keep = _labelled(train)
     if not keep.any():
         raise ConfigError(f"{train.source}: no labelled touch to train the {method} classifier on")
     k = len(train.scene.sensor.class_names)
@@ -59,7 +68,7 @@ def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: f
 def leave_one_out(method: str, train: EvalData, duration_s: float) -> float:
     """Accuracy of ``method`` on each labelled touch of ``train`` when trained on the others: how a
     user with one labelled session chooses a method (or its settings) without touching the rest."""
-    labelled = np.flatnonzero(train.extra["labelled"])
+    labelled = np.flatnonzero(_labelled(train))
     if len(labelled) < 3:
         raise ConfigError(f"{train.source}: leave-one-out needs 3 or more labelled touches, got {len(labelled)}")
     right = []
@@ -91,5 +100,5 @@ def few_shot_evaluate(
     durations = tuple(DURATIONS_S if durations is None else durations)
     metrics = ThermalTask().evaluate_by_duration(predict, data, durations, group_by)
     metrics["leave_one_out_by_duration"] = {_key(d): leave_one_out(method, train, d) for d in durations}
-    metrics["n_labelled"] = int(np.count_nonzero(train.extra["labelled"]))
+    metrics["n_labelled"] = int(np.count_nonzero(_labelled(train)))
     return metrics

@@ -117,6 +117,11 @@ def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> 
         assert (proba.argmax(axis=1) == test.truth["label"]).mean() > 0.6, method
         loo = leave_one_out(method, train, 4.0)
         assert 0.0 <= loo <= 1.0
+    # touches without a force record (simulated ones): press time falls back to clock time
+    bare = test.subset(np.arange(len(test)))
+    del bare.extra["press"], bare.extra["has_press"]
+    proba = few_shot_predict("press_aligned", train, bare, 4.0)
+    assert proba.shape == (30, 2) and np.isfinite(proba).all()
     # the same from the command line, with the scene a user's calibration writes
     write_scene(heated, tmp_path / "sensor.toml")
     args = ["eval", "--task", "thermal", "--data", str(tmp_path / "test"), "--method", "press_aligned"]
