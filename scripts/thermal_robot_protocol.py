@@ -7,10 +7,12 @@ For every labelled session: ``adapt`` (calibrate on its 9 touches, simulate, tra
 labelled touches, export) once per channel set (heated only; heated + passive), then every method
 on every other touch of the folder: the learned model, the classical methods on the calibrated
 scene (curve_match and physics_fit: the seed's, heated only; calibrated: the fitted sensor model,
-every channel of the classifier), and the onset-aligned PCA baseline trained on the same labelled
-touches. Accuracy at 0.5 / 1 / 2 / 4 s of contact (the onset: the force's half-plateau crossing),
-overall and per condition (M metal, W wood, CW cooled wood). The data: ``--data``, else
-``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot`` beside the repository.
+every channel of the classifier), and two classifiers trained on the same labelled touches alone
+(``tactile_learn.few_shot``): the onset-aligned PCA baseline and the press-aligned nearest touch
+(curves read against press time, the force's running integral). Accuracy at 0.5 / 1 / 2 / 4 s of
+contact (the onset: the force's half-plateau crossing), overall and per condition (M metal, W wood,
+CW cooled wood). The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
+``../shared/data/thermal-robot`` beside the repository.
 """
 
 from __future__ import annotations
@@ -24,12 +26,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from tactile_learn.estimators.classical.aligned_pca import AlignedPca, aligned_curves
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_evaluate
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
-from tactile_learn.tasks.thermal import ThermalTask, channel_keys
+from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import CHANNEL_CHOICES, adapt_scene, calibrate_recordings, write_scene
 from tactile_learn.thermal_recordings import select_recordings
 
@@ -61,25 +61,14 @@ def _key(d: float) -> str:
     return f"{d:g}" if d != int(d) else f"{d:.1f}"
 
 
-def pca_baseline(labelled: Path, test: Path, scene: Any) -> dict[str, Any]:
-    """The onset-aligned PCA + shrunk LDA baseline: one model per duration, trained on the
-    labelled touches' aligned curves of that duration (every channel of ``scene``)."""
+def few_shot(labelled: Path, test: Path, scene: Any, method: str) -> dict[str, Any]:
+    """A classifier trained on the labelled touches alone (:mod:`tactile_learn.few_shot`), one
+    model per duration, on every channel of ``scene``; with its leave-one-out accuracy on the
+    labelled touches (what a user can check without the other sessions)."""
     task = ThermalTask()
     train, data = task.load_eval_data(labelled, scene), task.load_eval_data(test, scene)
-    fs = scene.sensor.readout.sampling_hz
-    keys = channel_keys(scene.sensor)
-    k = len(scene.sensor.class_names)
-    groups = data.extra["info:condition"]
-    result: dict[str, Any] = {"all": {}}
-    for d in DURATIONS:
-        xa = aligned_curves([train.extra[c] for c in keys], train.extra["onset_s"], fs, d)
-        model = AlignedPca().fit(xa, train.truth["label"], k)
-        xb = aligned_curves([data.extra[c] for c in keys], data.extra["onset_s"], fs, d)
-        right = model.predict_proba(xb).argmax(axis=1) == data.truth["label"]
-        result["all"][_key(d)] = float(right.mean())
-        for g in sorted(set(groups)):
-            result.setdefault(g, {})[_key(d)] = float(right[groups == g].mean())
-    return result
+    metrics = few_shot_evaluate(method, train, data, DURATIONS, "condition")
+    return {**_table(metrics), "leave_one_out": metrics["leave_one_out_by_duration"]}
 
 
 def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Namespace) -> dict[str, Any]:
@@ -120,7 +109,8 @@ def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Na
         for name in ("curve_match", "physics_fit", "calibrated"):
             estimator = resolve_method("thermal", name, scene)
             methods[name] = _table(task.evaluate(estimator, data_test, durations=DURATIONS, group_by="condition"))
-        methods["aligned_pca"] = pca_baseline(labelled, test, scene)
+        for name in FEW_SHOT_METHODS:
+            methods[name] = few_shot(labelled, test, scene, name)
         out[channels] = {
             "methods": methods,
             "adapt_seconds": seconds,
@@ -169,8 +159,13 @@ def main(argv: list[str] | None = None) -> int:
                 cells = "  ".join(
                     f"{g} " + "/".join(f"{table[g][_key(d)]:.2f}" for d in DURATIONS) for g in ("all", "M", "W", "CW")
                 )
+                if "leave_one_out" in table:  # the few-shot methods: their check on the labelled touches
+                    cells += (
+                        "  (leave-one-out "
+                        + "/".join(f"{table['leave_one_out'][_key(d)]:.2f}" for d in DURATIONS)
+                        + ")"
+                    )
                 print(f"  {method:12s} {cells}")
-    _ = np
     return 0
 
 

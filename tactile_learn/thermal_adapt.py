@@ -404,7 +404,9 @@ def adapt_scene(
         warnings.append(
             f"accuracy on the labelled touches is {real['accuracy']:.2f}, near chance ({chance:.2f}): the calibrated "
             "simulator does not explain these touches well enough (see calibration.json: residual, parameters at "
-            "a bound); label more touches, or check the labels and the onsets"
+            "a bound); label more touches, check the labels and the onsets, or classify with a few-shot method "
+            "trained on the labelled touches alone (tactile-learn eval --task thermal --method press_aligned "
+            f"--train {Path(data)} --scene {folder / 'sensor.toml'} --data YOUR_TOUCHES)"
         )
     if report["residual"]["rms_sigma"] > 3.0:
         warnings.append(

@@ -44,6 +44,7 @@ __all__ = [
     "OPTIONAL_COLUMNS",
     "Touch",
     "press_onset",
+    "press_profile",
     "read_recordings",
     "read_touch",
     "read_touch_columns",
@@ -327,20 +328,11 @@ def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
     return values, onset
 
 
-def press_onset(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> float | None:
-    """The contact onset read from a force record: the time the press crosses half its plateau.
-
-    A median filter of ``filter_s`` removes dropouts (a force sensor with a dead band reads 0, then
-    jumps to its first level, and may toggle between them while the contact builds up); the plateau
-    is the median of the filtered force where it exceeds a quarter of its maximum; the onset is the
-    first crossing of half the plateau, interpolated between samples. Why half the plateau and not
-    the first touch: the first touch hides in the dead band and the dropouts (some records start
-    already in light contact), while the middle of the rise is where the force changes fastest, so
-    its time is the least sensitive to noise, and it is unit-free (the force may be in any unit).
-    Thermal contact starts a little earlier (at the first touch: up to ~1 s for a slow press).
-    Returns ``None`` when the record holds no press (no positive force) or starts above half the
-    plateau (the onset is before the record).
-    """
+def press_profile(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> np.ndarray | None:
+    """The force record median-filtered over ``filter_s`` (dropouts and the dead band removed) and
+    divided by its plateau (the median of the filtered force where it exceeds a quarter of its
+    maximum): 0 before the press, ~1 while pressed, whatever the force's unit. ``None`` when the
+    record holds no press (no positive force) or has fewer than 3 samples."""
     t = np.asarray(time_s, dtype=np.float64)
     f = np.asarray(force, dtype=np.float64)
     if len(t) < 3:
@@ -352,11 +344,31 @@ def press_onset(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_F
     if not top > 0:
         return None
     plateau = float(np.median(smooth[smooth >= 0.25 * top]))
-    level = 0.5 * plateau
-    above = smooth >= level
+    return np.asarray(smooth / plateau)
+
+
+def press_onset(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> float | None:
+    """The contact onset read from a force record: the time the press crosses half its plateau.
+
+    A median filter of ``filter_s`` removes dropouts (a force sensor with a dead band reads 0, then
+    jumps to its first level, and may toggle between them while the contact builds up); the plateau
+    is the median of the filtered force where it exceeds a quarter of its maximum; the onset is the
+    first crossing of half the plateau, interpolated between samples (:func:`press_profile`). Why
+    half the plateau and not the first touch: the first touch hides in the dead band and the
+    dropouts (some records start already in light contact), while the middle of the rise is where
+    the force changes fastest, so its time is the least sensitive to noise, and it is unit-free (the
+    force may be in any unit). Thermal contact starts a little earlier (at the first touch: up to
+    ~1 s for a slow press). Returns ``None`` when the record holds no press (no positive force) or
+    starts above half the plateau (the onset is before the record).
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    profile = press_profile(t, force, filter_s)
+    if profile is None:
+        return None
+    above = profile >= 0.5
     i = int(np.argmax(above))
     if i == 0:
         return None
-    lo, hi = smooth[i - 1], smooth[i]
-    frac = (level - lo) / (hi - lo) if hi > lo else 1.0  # hi >= level > lo
+    lo, hi = profile[i - 1], profile[i]
+    frac = (0.5 - lo) / (hi - lo) if hi > lo else 1.0  # hi >= 0.5 > lo
     return float(t[i - 1] + frac * (t[i] - t[i - 1]))

@@ -1,16 +1,21 @@
 """Issue 11's protocol on the real robot recordings (../shared/data/thermal-robot, or the folder in
 $TACTILE_THERMAL_ROBOT): label the 9 touches of session R_1, adapt, classify the 81 touches of
 R_2..R_10, and hold the floors: heated + passive >= 98 % at 2 s of contact, heated only >= 90 % at
-4 s. Skipped, saying why, only where the recordings are absent."""
+4 s (the heated-only floor is held by the press-aligned nearest-touch classifier trained on the 9
+labelled touches: the network adapted on the heated channel alone stays at 0.67, see README). Skipped,
+saying why, only where the recordings are absent."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from synth.config import replace
+from tactile_learn.few_shot import few_shot_predict
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import adapt_scene, calibrate_recordings
@@ -37,12 +42,17 @@ def protocol(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     scene, report = calibrate_recordings(labelled, ("heated", "passive"))
     task = ThermalTask()
     out: dict[str, Any] = {"report": report}
-    for channels in ("heated", "all"):
-        adapt_scene(scene, report, labelled, work / channels, channels=channels, n_train=N_TRAIN, epochs=EPOCHS)
-        model = OnnxEstimator(work / channels / "model.onnx")
-        data = task.load_eval_data(test, model.card_scene_)
-        out[channels] = task.evaluate(model, data, durations=(0.5, 1.0, 2.0, 4.0), group_by="condition")
-        out[f"n_{channels}"] = len(data)
+    adapt_scene(scene, report, labelled, work / "all", channels="all", n_train=N_TRAIN, epochs=EPOCHS)
+    model = OnnxEstimator(work / "all" / "model.onnx")
+    data = task.load_eval_data(test, model.card_scene_)
+    out["all"] = task.evaluate(model, data, durations=(0.5, 1.0, 2.0, 4.0), group_by="condition")
+    out["n_all"] = len(data)
+    # heated only: the classifier trained on the 9 labelled touches, read against press time
+    heated = dataclasses.replace(scene, sensor=replace(scene.sensor, "channels", ["heated"]))
+    train, data = task.load_eval_data(labelled, heated), task.load_eval_data(test, heated)
+    out["heated"] = {"n": len(data), "truth": data.truth["label"], "condition": data.extra["info:condition"]}
+    for d in (2.0, 4.0):
+        out["heated"][d] = few_shot_predict("press_aligned", train, data, d).argmax(axis=1)
     return out
 
 
@@ -53,14 +63,14 @@ def test_heated_and_passive_floor(protocol: dict[str, Any]) -> None:
     assert accuracy["4.0"] >= 0.98, accuracy
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="not met (issue 11): the heated channel alone confuses metal with cooled wood on R_2..R_10 "
-    "(see README, Real thermal recordings)",
-)
 def test_heated_only_floor(protocol: dict[str, Any]) -> None:
-    accuracy = protocol["heated"]["accuracy_by_duration"]
-    assert accuracy["4.0"] >= 0.90, accuracy
+    heated = protocol["heated"]
+    assert heated["n"] == 81
+    right = heated[4.0] == heated["truth"]
+    by_condition = {c: float(right[heated["condition"] == c].mean()) for c in ("M", "W", "CW")}
+    assert right.mean() >= 0.90, by_condition
+    # not by answering one class: metal and cooled wood, the pair the heated curve hardly tells apart
+    assert min(by_condition.values()) >= 0.75, by_condition
 
 
 def test_calibration_report_of_r1_is_complete(protocol: dict[str, Any]) -> None:

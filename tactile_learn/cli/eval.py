@@ -11,6 +11,7 @@ from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json, json_dumps
 from synth.scene import load_scene
 from tactile_learn.cli.common import positive_int
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_evaluate
 from tactile_learn.methods import model_scene, resolve_method
 from tactile_learn.tasks import TASK_NAMES, get_task
 
@@ -22,12 +23,16 @@ EXAMPLES = """\
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
   tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
   tactile-learn eval --task thermal --data robot/ --method adapted/model.onnx --durations 0.5,1,2,4 --group-by condition
+  tactile-learn eval --task thermal --data robot/ --method press_aligned --train labelled/ --scene adapted/sensor.toml
 An .npz needs the task's arrays (strips: 'readings' (B, N+M) and 'pressure' (B, N, M)); a dataset
 folder from 'generate' carries its own scene; other data is read with the model's scene (a
 classical method: the task's default) unless --scene names one. Prints and writes
 {"task", "method", "n_frames", "metrics": {...}}. With --suite (families of shapes, synth/suites/),
 fresh frames of every family are simulated (--n per family, --seed) and the metrics are reported per
-family and as their mean over families: {"suite", "families": {...}, "mean_over_families": {...}}."""
+family and as their mean over families: {"suite", "families": {...}, "mean_over_families": {...}}.
+The thermal few-shot methods (aligned_pca, press_aligned: README, Real thermal recordings) learn
+from the labelled recordings in --train (one model per duration) and add their leave-one-out
+accuracy on them (leave_one_out_by_duration)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,6 +57,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_durations,
         default=None,
         help="thermal: contact durations (s) to evaluate, comma-separated (default 0.25,0.5,1,2,4)",
+    )
+    parser.add_argument(
+        "--train",
+        default=None,
+        help="thermal few-shot methods (aligned_pca, press_aligned): the labelled recordings they learn from",
     )
     parser.add_argument(
         "--group-by", default=None, help="thermal: also report metrics per value of this touches.csv column (by_group)"
@@ -83,18 +93,30 @@ def run(args: argparse.Namespace) -> int:
         data = data.subset(slice(0, args.limit))
     if len(data) == 0:
         raise DataError(f"{args.data}: no frames to evaluate")
-    estimator = resolve_method(args.task, args.method, data.scene, threads=args.threads)
-    start = time.perf_counter()
     options = {k: v for k, v in (("durations", args.durations), ("group_by", args.group_by)) if v is not None}
     if options and args.task != "thermal":
         raise ConfigError(f"--durations and --group-by apply to the thermal task, not {args.task!r}")
-    metrics = task.evaluate(estimator, data, **options) if options else task.evaluate(estimator, data)
+    start = time.perf_counter()
+    if args.method in FEW_SHOT_METHODS and args.task == "thermal":
+        if args.train is None:
+            raise ConfigError(f"--method {args.method} learns from labelled touches: give --train LABELLED_DIR")
+        train = task.load_eval_data(args.train, data.scene)
+        metrics = few_shot_evaluate(args.method, train, data, args.durations, args.group_by)
+        name = args.method
+    else:
+        if args.train is not None:
+            raise ConfigError(
+                f"--train applies to the few-shot methods ({', '.join(FEW_SHOT_METHODS)}), not {args.method!r}"
+            )
+        estimator = resolve_method(args.task, args.method, data.scene, threads=args.threads)
+        metrics = task.evaluate(estimator, data, **options) if options else task.evaluate(estimator, data)
+        name = estimator.name or args.method
     elapsed = time.perf_counter() - start
     if args.reference:
         metrics.update(task.reference_metrics(data))
     result = {
         "task": args.task,
-        "method": estimator.name or args.method,
+        "method": name,
         "scene": data.scene.name,
         "n_frames": len(data),
         "metrics": metrics,

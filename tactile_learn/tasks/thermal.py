@@ -448,7 +448,7 @@ class ThermalTask(Task):
         return np.where(onset.detected, (onset.index + 0.5) / fs, 0.0)
 
     def _from_recordings(self, path: Path, scene: Scene) -> EvalData:
-        from tactile_learn.thermal_recordings import press_onset, read_recordings, resample_channel
+        from tactile_learn.thermal_recordings import press_onset, press_profile, read_recordings, resample_channel
 
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
@@ -471,6 +471,17 @@ class ThermalTask(Task):
                 records[i, len(v) :] = v[-1]
             extra[key] = records
         detected = self._detect_onsets(extra["record"], cfg)
+        # the press (force / its plateau) on the same grid, for methods that time the contact by it
+        press = np.zeros((len(touches), r), dtype=np.float32)
+        has_press = np.zeros(len(touches), dtype=bool)
+        for i, t in enumerate(touches):
+            profile = press_profile(t.time_s, t.force) if t.force is not None else None
+            if profile is not None:
+                values = np.interp(t.time_s[0] + np.arange(lengths[i]) / fs, t.time_s, profile)
+                press[i, : len(values)] = values
+                press[i, len(values) :] = values[-1]
+                has_press[i] = True
+        extra.update(press=press, has_press=has_press)
         onset = np.empty(len(touches))
         source = np.empty(len(touches), dtype=object)
         for i, t in enumerate(touches):
@@ -534,6 +545,18 @@ class ThermalTask(Task):
         same metrics per value of that column under ``by_group``."""
         if "record" not in data.extra:
             return self.metrics(estimator.predict(data.inputs), data)
+        return self.evaluate_by_duration(lambda d, x, rows: estimator.predict(x), data, durations, group_by)
+
+    def evaluate_by_duration(
+        self,
+        predict: Callable[[float, np.ndarray, np.ndarray], np.ndarray],
+        data: EvalData,
+        durations: Sequence[float] | None = None,
+        group_by: str | None = None,
+    ) -> dict[str, Any]:
+        """:meth:`evaluate` for any ``predict(duration_s, windows, rows)`` giving (n, K + 1) scores
+        of the touches ``rows`` of ``data`` (their ``windows`` of that duration): a method that
+        reads more than the windows (e.g. the force record) or has one model per duration."""
         durations = tuple(DURATIONS_S if durations is None else durations)
         groups = _groups(data, group_by) if group_by else None
         keep_all = data.extra.get("labelled", np.ones(len(data), dtype=bool))
@@ -542,7 +565,8 @@ class ThermalTask(Task):
             x, valid = view(data, d)
             keep = valid & keep_all
             if keep.any():
-                preds[_key(d)] = (np.flatnonzero(keep), estimator.predict(x[keep]))
+                rows = np.flatnonzero(keep)
+                preds[_key(d)] = (rows, predict(d, x[keep], rows))
         result = self._summary(data, preds, np.ones(len(data), dtype=bool))
         if groups is not None:
             result["by_group"] = {
