@@ -47,8 +47,14 @@ def _model(n: int, rng: np.random.Generator, **fixed: float) -> ContactModel:
 
 @pytest.mark.parametrize(
     "fixed",
-    [{}, {"loss": 0.0, "spreading": 0.0, "heating": 0.0}, {"conductance": 1e7}, {"heat_capacity": 20.0}],
-    ids=["random", "seed-model", "ideal-contact", "light-sensor"],
+    [
+        {},
+        {"loss": 0.0, "spreading": 0.0, "heating": 0.0},
+        {"loss": 0.0, "spreading": 0.0, "heating": 5000.0, "conductance": 1e6, "effusivity": 30000.0},
+        {"conductance": 1e7},
+        {"heat_capacity": 20.0},
+    ],
+    ids=["random", "seed-model", "seed-model-metal", "ideal-contact", "light-sensor"],
 )
 def test_record_excess_matches_touch_excess_over_wide_parameters(fixed: dict[str, float]) -> None:
     """Every root kind (series, real erfcx, complex erfcx), onsets before the record, releases at

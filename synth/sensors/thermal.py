@@ -698,13 +698,20 @@ class Readout:
         self.config = config
 
     def noise(self, clean: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        return clean + self.config.noise_k * rng.standard_normal(clean.shape)
+        out = rng.standard_normal(clean.shape)
+        out *= self.config.noise_k  # in place: the values of clean + noise_k * z, one temporary less
+        out += clean
+        return out
 
     def adc(self, temperature: np.ndarray) -> np.ndarray:
         lo, hi = self.config.adc_range_c
         step = self.config.adc_step_k
-        out = np.round(temperature / step) * step if step > 0 else temperature
-        return np.clip(out, lo, hi)
+        if step <= 0:
+            return np.clip(temperature, lo, hi)
+        out = temperature / step
+        np.round(out, out=out)
+        out *= step
+        return np.clip(out, lo, hi, out=out)
 
     def __call__(self, clean: np.ndarray, rng: np.random.Generator, noise: bool = True) -> np.ndarray:
         """Noisy, quantised readings (``noise=False``: the clean curve, unchanged)."""

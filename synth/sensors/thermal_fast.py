@@ -43,6 +43,8 @@ __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
 #: ``g`` fall like ``|y|^m / Gamma(m/2 + 1)``: at |y| = 1, 36 terms reach 1e-17, with no
 #: cancellation worse than e^(|y|^2) ~ 3)
 SERIES_RADIUS = 1.0
+#: rows are grouped by the largest ``|y|`` their series reaches: fewer terms for the smaller
+_REACH_BINS = (0.25, 0.5, 0.75, SERIES_RADIUS)
 #: enough series terms for ``|y| <= SERIES_RADIUS``
 _MAX_TERMS = 40
 _SERIES_A = np.array([(-1.0) ** m / math.gamma((m + 1) / 2 + 1) for m in range(_MAX_TERMS)])
@@ -85,21 +87,28 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     series = reach <= SERIES_RADIUS
     total = np.zeros(tau.shape)
     if series.any():
-        n_terms = series_terms(float(reach[series].max()))
+        row_reach = np.where(series, reach, 0.0).max(axis=1)
+        n_terms = series_terms(float(row_reach.max()))
         # real coefficients of the folded series: b_m = a_m Re sum_(series roots) w (-p)^m
         wm = np.where(series, w, 0.0)
         coef = np.empty((n_terms, len(r)))
         for m in range(n_terms):
             coef[m] = _SERIES_A[m] * wm.real.sum(axis=1)
             wm = wm * -r
-        rows = np.flatnonzero(series.any(axis=1))
-        sr = s[rows]
-        acc = np.broadcast_to(coef[-1, rows, None], sr.shape).copy()
-        for m in range(n_terms - 2, -1, -1):
+        low = -1.0  # a root at 0 (the seed's G = k_s = 0) reaches 0
+        for high in _REACH_BINS:  # rows that reach less need fewer terms
+            rows = np.flatnonzero(series.any(axis=1) & (row_reach > low) & (row_reach <= high))
+            low = high
+            if not len(rows):
+                continue
+            sr = s[rows]
+            terms = min(n_terms, series_terms(high))
+            acc = np.broadcast_to(coef[terms - 1, rows, None], sr.shape).copy()
+            for m in range(terms - 2, -1, -1):
+                acc *= sr
+                acc += coef[m, rows, None]
             acc *= sr
-            acc += coef[m, rows, None]
-        acc *= sr
-        total[rows] += acc
+            total[rows] += acc
     # a complex root's conjugate (the cubic's coefficients are real) carries the conjugate weight
     # (exactly: the same arithmetic on conjugate inputs): Re(w phi) of the pair is twice the one's
     conj = np.conj(r)
