@@ -19,7 +19,8 @@ gives the same curve (to ~1e-12 K) from far less work:
   sqrt(G / C) ~ 0.35 s^-1/2``), so the pair always takes this path;
 * **real roots** (the fast interface mode, ``p`` of -10 to -2000 s^-1/2) take the *real* ``erfcx``
   (about 6x cheaper than the complex one), with the series near ``y = 0`` as in ``phi``;
-* anything else (a complex root with a large ``|p| sqrt t``) falls back to the complex ``phi``.
+* anything else (a complex root with a large ``|p| sqrt t``, a metal's pair) takes the complex
+  ``erfcx``, once per conjugate pair.
 
 Everything stays float64: the series is truncated where its next term is below 1e-17 of ``g``,
 so the curve differs from the reference only by rounding (the test bounds it at 1e-9 K), and
@@ -35,7 +36,7 @@ import math
 import numpy as np
 from scipy import special
 
-from synth.sensors.thermal import _G_SERIES, _SERIES_RADIUS, ContactModel, phi, recovery_excess
+from synth.sensors.thermal import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
 
@@ -60,11 +61,12 @@ def series_terms(y_max: float) -> int:
     return _MAX_TERMS
 
 
-def _real_g(y: np.ndarray) -> np.ndarray:
-    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` (the series below ``_SERIES_RADIUS``,
-    where the quotient cancels; ``g(0) = 2 / sqrt(pi)``)."""
+def _g(y: np.ndarray) -> np.ndarray:
+    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0`` (the series below
+    ``_SERIES_RADIUS``, where the quotient cancels; ``g(0) = 2 / sqrt(pi)``), each element once:
+    :func:`~synth.sensors.thermal.phi` evaluates both forms everywhere and selects."""
     out = np.empty_like(y)
-    small = y < _SERIES_RADIUS
+    small = np.abs(y) < _SERIES_RADIUS
     big = ~small
     yb = y[big]
     out[big] = (1.0 - special.erfcx(yb)) / yb
@@ -120,12 +122,14 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
             rows = np.flatnonzero(real)
             sr = s[rows]
             y = -r[rows, j].real[:, None] * sr  # >= 0: Re p <= 0
-            total[rows] += w[rows, j].real[:, None] * (sr * _real_g(y))
+            total[rows] += w[rows, j].real[:, None] * (sr * _g(y))
         other = ~series[:, j] & ~real & ~(paired[:, j] & (r[:, j].imag < 0))
         if other.any():
             rows = np.flatnonzero(other)
             factor = np.where(paired[rows, j], 2.0, 1.0)[:, None]
-            total[rows] += factor * np.real(w[rows, j, None] * phi(r[rows, j, None], tau[rows]))
+            sr = s[rows]
+            g = _g(-r[rows, j, None] * sr)  # phi(p, tau) = sqrt(tau) g(-p sqrt(tau))
+            total[rows] += factor * sr * (w[rows, j, None] * g).real
     return total
 
 
@@ -142,8 +146,10 @@ def record_excess(time_s: np.ndarray, model: ContactModel, onset: np.ndarray, re
     source = (model.heating + model.loss * model.v0).reshape(-1)
     cap, loss = model.heat_capacity.reshape(-1), model.loss.reshape(-1)
     out = np.empty((len(onset), len(time_s)))
+    # pixels in order of their contact's length: a block's grid is padded to its longest contact
+    by_length = np.argsort(np.searchsorted(time_s, release) - np.searchsorted(time_s, onset), kind="stable")
     for start in range(0, len(onset), _BLOCK_ROWS):
-        rows = slice(start, start + _BLOCK_ROWS)
+        rows = by_length[start : start + _BLOCK_ROWS]
         out[rows] = _record_block(
             time_s, r[rows], w[rows], v0[rows], onset[rows], release[rows], source[rows], cap[rows], loss[rows]
         )
