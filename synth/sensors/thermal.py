@@ -755,7 +755,7 @@ _DYNAMIC_LATENTS: dict[str, tuple[str, str]] = {
 
 
 #: samples (touches x pixels x record) per block of :meth:`ThermalSimulator._readings`
-_READOUT_BLOCK = 160_000
+_READOUT_BLOCK = 320_000
 
 
 class ThermalSimulator:

@@ -65,11 +65,9 @@ def _g(y: np.ndarray) -> np.ndarray:
     """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0`` (the series below
     ``_SERIES_RADIUS``, where the quotient cancels; ``g(0) = 2 / sqrt(pi)``), each element once:
     :func:`~synth.sensors.thermal.phi` evaluates both forms everywhere and selects."""
-    out = np.empty_like(y)
+    with np.errstate(divide="ignore", invalid="ignore"):  # y = 0 (padding): replaced below
+        out = (1.0 - special.erfcx(y)) / y
     small = np.abs(y) < _SERIES_RADIUS
-    big = ~small
-    yb = y[big]
-    out[big] = (1.0 - special.erfcx(yb)) / yb
     if small.any():
         ys = y[small]
         acc = np.zeros_like(ys)
