@@ -61,13 +61,12 @@ def series_terms(y_max: float) -> int:
     return _MAX_TERMS
 
 
-def _g(y: np.ndarray) -> np.ndarray:
-    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0`` (the series below
-    ``_SERIES_RADIUS``, where the quotient cancels; ``g(0) = 2 / sqrt(pi)``), each element once:
-    :func:`~synth.sensors.thermal.phi` evaluates both forms everywhere and selects."""
+def _g(y: np.ndarray, small: np.ndarray) -> np.ndarray:
+    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0``, with the series
+    where ``small`` (``|y| < _SERIES_RADIUS``: the quotient cancels there; ``g(0) = 2 / sqrt(pi)``),
+    each element once (:func:`~synth.sensors.thermal.phi` evaluates both forms everywhere)."""
     with np.errstate(divide="ignore", invalid="ignore"):  # y = 0 (padding): replaced below
         out = (1.0 - special.erfcx(y)) / y
-    small = np.abs(y) < _SERIES_RADIUS
     if small.any():
         ys = y[small]
         acc = np.zeros_like(ys)
@@ -83,18 +82,18 @@ _BLOCK_ROWS = 256
 
 def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.ndarray) -> np.ndarray:
     s = np.sqrt(tau)
-    reach = np.abs(r) * np.sqrt(tau_max)[:, None]  # largest |y| each root reaches
+    size = np.abs(r)
+    reach = size * np.sqrt(tau_max)[:, None]  # largest |y| = |p| sqrt(tau) each root reaches
     series = reach <= SERIES_RADIUS
     total = np.zeros(tau.shape)
     if series.any():
         row_reach = np.where(series, reach, 0.0).max(axis=1)
         n_terms = series_terms(float(row_reach.max()))
         # real coefficients of the folded series: b_m = a_m Re sum_(series roots) w (-p)^m
-        wm = np.where(series, w, 0.0)
-        coef = np.empty((n_terms, len(r)))
-        for m in range(n_terms):
-            coef[m] = _SERIES_A[m] * wm.real.sum(axis=1)
-            wm = wm * -r
+        powers = np.where(series, w, 0.0)[:, :, None] * np.cumprod(
+            np.concatenate([np.ones((len(r), 3, 1)), np.repeat(-r[:, :, None], n_terms - 1, axis=2)], axis=2), axis=2
+        )
+        coef = _SERIES_A[:n_terms, None] * powers.real.sum(axis=1).T  # (terms, rows)
         low = -1.0  # a root at 0 (the seed's G = k_s = 0) reaches 0
         for high in _REACH_BINS:  # rows that reach less need fewer terms
             rows = np.flatnonzero(series.any(axis=1) & (row_reach > low) & (row_reach <= high))
@@ -116,18 +115,24 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     paired &= r.imag != 0
     for j in range(r.shape[1]):
         real = ~series[:, j] & (r[:, j].imag == 0)
-        if real.any():
-            rows = np.flatnonzero(real)
-            sr = s[rows]
-            y = -r[rows, j].real[:, None] * sr  # >= 0: Re p <= 0
-            total[rows] += w[rows, j].real[:, None] * (sr * _g(y))
         other = ~series[:, j] & ~real & ~(paired[:, j] & (r[:, j].imag < 0))
-        if other.any():
-            rows = np.flatnonzero(other)
-            factor = np.where(paired[rows, j], 2.0, 1.0)[:, None]
-            sr = s[rows]
-            g = _g(-r[rows, j, None] * sr)  # phi(p, tau) = sqrt(tau) g(-p sqrt(tau))
-            total[rows] += factor * sr * (w[rows, j, None] * g).real
+        for kind, chosen in (("real", real), ("complex", other)):
+            if not chosen.any():
+                continue
+            every = bool(chosen.all())  # the common case: a slice, not a gather and a scatter
+            pick: slice | np.ndarray = slice(None) if every else np.flatnonzero(chosen)
+            sr = s[pick]
+            # phi(p, tau) = sqrt(tau) g(-p sqrt(tau)); |y| < radius where sqrt(tau) < radius / |p|
+            small = sr < (_SERIES_RADIUS / np.maximum(size[pick, j], 1e-300))[:, None]
+            if kind == "real":
+                g = _g(-r[pick, j].real[:, None] * sr, small)  # y >= 0: Re p <= 0
+                part = w[pick, j].real[:, None] * g
+            else:
+                g = _g(-r[pick, j, None] * sr, small)
+                wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
+                part = wj.real[:, None] * g.real - wj.imag[:, None] * g.imag  # Re(w g)
+            part *= sr
+            total[pick] += part
     return total
 
 
