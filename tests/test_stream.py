@@ -91,6 +91,10 @@ def test_a_model_trained_from_the_stream_is_the_datasets(folders: Path) -> None:
     c = _weights(folders / "run-fresh")
     assert any(not torch.equal(a[k], c[k]) for k in a)  # epoch 2 trained on other touches
     assert fresh["train_data"]["fresh"] is True
+    from tactile_learn.export import export
+
+    card = export(folders / "run-fresh", folders / "fresh.onnx")  # a run without a dataset path exports
+    assert card["training"]["data"] == {**described, "fresh": True}
 
 
 def dataclass_replace(config: TrainConfig, **changes: object) -> TrainConfig:
