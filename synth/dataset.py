@@ -35,7 +35,7 @@ from synth.io import atomic_save_npy, atomic_write_json, sha256_file
 from synth.scene import Scene, parse_scene
 from synth.sensors import sensor_module
 
-__all__ = ["FORMAT_VERSION", "Dataset", "generate", "load_arrays", "simulate_shard"]
+__all__ = ["FORMAT_VERSION", "Dataset", "generate", "load_arrays", "simulate_shard", "stream"]
 
 FORMAT_VERSION = 1
 #: samples simulated per call inside a shard; fixed so that the random stream never depends on it
@@ -77,6 +77,18 @@ def simulate_shard(scene: Scene, seed: int, index: int, size: int) -> dict[str, 
     if not parts:
         return {k: np.zeros((0, *s.shape), dtype=s.dtype) for k, s in simulator.output_specs().items()}
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def stream(scene: Scene, seed: int, shard_size: int = 8192, start: int = 0) -> Iterator[dict[str, np.ndarray]]:
+    """Endless shards of fresh samples, never written: shard ``start``, ``start + 1``, ... of
+    ``seed`` (each :func:`simulate_shard`), so the first ``k`` are, byte for byte, the shards of
+    ``generate(scene, k * shard_size, seed, out, shard_size=shard_size)``."""
+    if isinstance(shard_size, bool) or not isinstance(shard_size, int) or shard_size < 1:
+        raise ConfigError(f"shard_size: expected a positive integer, got {shard_size!r}")
+    index = start
+    while True:
+        yield simulate_shard(scene, seed, index, shard_size)
+        index += 1
 
 
 def _write_shard(folder: Path, scene: Scene, seed: int, index: int, size: int) -> dict[str, Any]:

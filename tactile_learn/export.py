@@ -145,7 +145,7 @@ def export(
         "scene": scene.to_dict(),
         "scene_digest": scene.digest,
         "training": {
-            "data": {**result["train_data"], "path": portable_path(result["train_data"]["path"])},
+            "data": _card_data(result["train_data"]),
             "validation": {**result["val_data"], "path": portable_path(result["val_data"]["path"])},
             "epochs_run": result["epochs_run"],
             "best_epoch": result["best_epoch"],
@@ -270,3 +270,11 @@ def to_onnx(
     model.producer_name = "tactile-learn"
     onnx.checker.check_model(model)
     onnx.save(model, str(path))
+
+
+def _card_data(train_data: dict[str, Any]) -> dict[str, Any]:
+    """The card's record of the training data: a dataset's path made portable; a stream (training
+    on simulated touches, no path) as it is."""
+    if "path" not in train_data:
+        return dict(train_data)
+    return {**train_data, "path": portable_path(train_data["path"])}

@@ -1,6 +1,7 @@
 """The one training loop for every task (CPU, reproducible, resumable).
 
-- Data streams from the dataset's memory-mapped shards, one shard in memory at a time.
+- Data streams from the dataset's memory-mapped shards, one shard in memory at a time, or is
+  simulated as it is needed (``scene`` + ``stream``: :class:`tactile_learn.stream.TouchStream`).
 - Epoch ``e`` shuffles and augments with ``SeedSequence(seed, spawn_key=(e,))``; the torch RNG
   state is checkpointed; so a run killed at any point and resumed with ``--resume`` ends with the
   same weights as an uninterrupted run with the same seed (same machine and thread count).
@@ -25,8 +26,10 @@ from synth import __version__
 from synth.dataset import Dataset
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
+from synth.scene import load_scene
 from tactile_learn.checkpoints import MODEL, build_net, load_torch, load_weights, save_torch
 from tactile_learn.progress import progress_bar
+from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.torch_estimator import TorchEstimator
@@ -53,6 +56,12 @@ class TrainConfig:
     threads: int = 0  # 0: torch's default
     max_batches: int = 0  # per epoch; 0: the whole dataset (tests use a few)
     init: str | None = None  # start from these weights (a run folder or a model's NAME.pt): fine-tuning
+    # instead of ``data``: simulate ``stream`` samples per epoch of ``scene`` (tactile_learn.stream)
+    scene: str = ""
+    stream: int = 0
+    stream_seed: int = 0
+    shard_size: int = 8192
+    fresh: bool = True  # a new ``stream`` samples every epoch (False: the same ones, as a dataset)
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -65,9 +74,15 @@ class TrainConfig:
             raise ConfigError(f"--lr: {self.lr} is out of range (0, 1)")
         if self.epochs < 0 or self.seed < 0 or self.threads < 0 or self.max_batches < 0:
             raise ConfigError("--epochs, --seed, --threads and --max-batches must be non-negative")
+        if self.stream < 0 or self.stream_seed < 0 or self.shard_size < 1:
+            raise ConfigError("--stream and --stream-seed must be non-negative, --shard-size positive")
+        if bool(self.stream) == bool(self.data):
+            raise ConfigError("give either --data (a dataset folder) or --scene with --stream N (touches per epoch)")
+        if bool(self.stream) != bool(self.scene):
+            raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
 
 
-def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
+def _val_data(config: TrainConfig, train_set: Dataset | TouchStream) -> EvalData:
     task = get_task(config.task)
     if config.val:
         # data without a scene of its own (recordings, an .npz) is read with the training scene
@@ -114,15 +129,22 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     out = Path(config.out)
     if config.threads:
         torch.set_num_threads(config.threads)
-    train_set = Dataset(config.data)
+    train_set: Dataset | TouchStream
+    if config.stream:
+        train_set = TouchStream(
+            load_scene(config.scene), config.stream, config.stream_seed, config.shard_size, config.fresh
+        )
+    else:
+        train_set = Dataset(config.data)
     scene = train_set.scene
     if scene.task != config.task:
-        raise DataError(f"{config.data}: dataset is for task {scene.task!r}, not {config.task!r}")
+        raise DataError(f"{config.data or config.scene}: the scene is for task {scene.task!r}, not {config.task!r}")
     keys = list(task.train_keys_for(scene))
     missing = [k for k in keys if k not in train_set.keys]
     if missing:
         raise DataError(
-            f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)"
+            f"{config.data or config.scene}: training needs arrays {', '.join(missing)} "
+            "(generate with the default outputs)"
         )
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
@@ -144,7 +166,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
     if batches_per_epoch < 1:
-        raise DataError(f"{config.data}: fewer samples than one batch of {config.batch_size}")
+        raise DataError(f"{config.data or config.scene}: fewer samples than one batch of {config.batch_size}")
     scheduler = torch.optim.lr_scheduler.OneCycleLR(
         optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
     )
@@ -161,6 +183,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         ckpt = load_torch(ckpt_path)
         # the thread count may change on resume (a busier machine): it changes speed, not the recipe
         started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
+        # a run started before a setting existed ran with that setting's default
+        defaults = asdict(TrainConfig(task=config.task, data=config.data, out=config.out))
+        started_with = {**{k: v for k, v in defaults.items() if k not in started_with}, **started_with}
+        started_with.pop("threads", None)
         if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
             raise ConfigError(f"{ckpt_path}: the run was started with other settings; resume it with the same command")
         net.load_state_dict(ckpt["net"])
@@ -183,7 +209,11 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         net.train()
         losses = []
         with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
-            for i, arrays in enumerate(train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)):
+            if isinstance(train_set, TouchStream):
+                batches = train_set.epoch_batches(epoch, keys, config.batch_size, rng, drop_last=True)
+            else:
+                batches = train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)
+            for i, arrays in enumerate(batches):
                 if i >= batches_per_epoch:
                     break
                 x, targets = task.training_batch(arrays, scene, rng)
@@ -240,7 +270,11 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "size": size,
         "scene": scene.name,
         "scene_digest": scene.digest,
-        "train_data": {"path": str(config.data), "seed": train_set.seed, "n": len(train_set)},
+        "train_data": (
+            train_set.describe()
+            if isinstance(train_set, TouchStream)
+            else {"path": str(config.data), "seed": train_set.seed, "n": len(train_set)}
+        ),
         "val_data": {"path": str(config.val), "n": len(val)},
         "epochs_run": state["epoch"],
         "best_epoch": state["best_epoch"],

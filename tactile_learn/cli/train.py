@@ -8,20 +8,37 @@ from synth.io import json_dumps
 from tactile_learn.cli.common import non_negative_int, positive_int
 from tactile_learn.tasks import TASK_NAMES
 
-HELP = "train a task's network on a generated dataset (CPU, reproducible, resumable)"
+HELP = "train a task's network on a generated dataset or on touches simulated as needed (CPU, reproducible, resumable)"
 EXAMPLES = """\
   tactile-learn generate --scene strips16 --n 200000 --seed 1 --out data/s16-train --workers 2
   tactile-learn generate --scene strips16 --n 4000 --seed 2 --out data/s16-val
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small --resume
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
+  tactile-learn train --task thermal --scene thermal --stream 160000 --val data/th-val --out runs/th-stream
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
+--scene/--stream: every epoch simulates --stream fresh samples (seed --stream-seed; epoch e takes the shards
+after epoch e-1's), shuffled like a dataset; --repeat reuses the first epoch's (then training equals training on
+`generate --n N --seed S --shard-size B`, same weights).
 Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metrics.json and RUN/loss.png."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
-    parser.add_argument("--data", required=True, help="training dataset folder")
+    parser.add_argument("--data", default=None, help="training dataset folder (or --scene with --stream)")
+    parser.add_argument("--scene", default=None, help="instead of --data: simulate this scene (name or .toml)")
+    parser.add_argument(
+        "--stream", type=non_negative_int, default=0, help="with --scene: samples simulated per epoch (nothing written)"
+    )
+    parser.add_argument(
+        "--stream-seed", type=non_negative_int, default=1, help="seed of the simulated samples (as generate --seed)"
+    )
+    parser.add_argument(
+        "--shard-size", type=positive_int, default=8192, help="samples simulated at a time (as generate --shard-size)"
+    )
+    parser.add_argument(
+        "--repeat", action="store_true", help="every epoch the same --stream samples (a dataset) instead of fresh ones"
+    )
     parser.add_argument("--val", required=True, help="validation dataset folder (another seed)")
     parser.add_argument("--out", required=True, help="run folder")
     parser.add_argument("--size", default="", help="network size (task-specific; default: the smallest)")
@@ -45,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = TrainConfig(
         task=args.task,
-        data=args.data,
+        data=args.data or "",
         val=args.val,
         out=args.out,
         size=args.size,
@@ -58,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
         threads=args.threads,
         max_batches=args.max_batches,
         init=args.init,
+        scene=args.scene or "",
+        stream=args.stream,
+        stream_seed=args.stream_seed,
+        shard_size=args.shard_size,
+        fresh=not args.repeat,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet:
