@@ -47,6 +47,10 @@ def input_stats(readings: np.ndarray, pressure: np.ndarray, scene: Scene) -> dic
     loads = sensor.invert_readings(readings.astype(np.float64))
     load_scale = float(np.sqrt(np.mean(loads**2)) + 1e-6)
     pressure_scale = float(np.sqrt(np.mean(pressure.astype(np.float64) ** 2)) + 1e-6)
+    if not sensor.layout.orthogonal:  # any other layout: the layout network (strips_layout)
+        from tactile_learn.nets.strips_layout import ARCH
+
+        return {"load_scale": load_scale, "pressure_scale_kpa": pressure_scale, "arch": ARCH}
     return {
         "load_scale": load_scale,
         "pressure_scale_kpa": pressure_scale,
@@ -171,6 +175,13 @@ def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> nn.Module
     shape library) when the statistics say so, else this module's first architecture (models
     shipped before it). ``v1_small`` / ``v1_large`` train the first architecture on purpose (the
     two-sphere specialist's recipe)."""
+    if stats.get("arch", 1) == 3:
+        from tactile_learn.nets.strips_layout import LayoutStripNet
+
+        size = size.removeprefix("v1_")
+        if size not in SIZES:
+            raise ValueError(f"size {size!r} is not one of {', '.join(SIZES)} (a layout network)")
+        return LayoutStripNet(scene, stats, size)
     if size.startswith("v1_"):
         size = size.removeprefix("v1_")
     elif stats.get("arch", 1) == 2:

@@ -97,8 +97,20 @@ class StripsTask(Task):
     default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
-        g = scene.sensor.geometry
-        return (g.n_rows + g.n_cols,)
+        """(C,): one reading per channel of the scene's layout (N + M for the orthogonal pair;
+        ``synth.sensors.strip_layouts`` documents each layout's order)."""
+        return (scene.sensor.wire_count(),)
+
+    def input_layout(self, scene: Scene) -> dict[str, Any]:
+        """The readings order of the scene's layout: each group of channels, its first index and count."""
+        from synth.sensors.strip_layouts import StripLayout
+
+        layout = StripLayout(scene.sensor.geometry)
+        return {
+            "layout": layout.name,
+            "order": [{"group": g.name, "first": g.start, "count": g.stop - g.start} for g in layout.groups],
+            "documented_in": "synth.sensors.strip_layouts",
+        }
 
     def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
         """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
@@ -164,10 +176,11 @@ class StripsTask(Task):
                 raise DataError(f"{path}: needs arrays 'readings' (B, N+M) and 'pressure' (B, N, M); missing {key!r}")
         g = scene.sensor.geometry
         readings, pressure = arrays["readings"], arrays["pressure"]
-        if readings.ndim != 2 or readings.shape[1] != g.n_rows + g.n_cols:
+        if readings.ndim != 2 or readings.shape[1] != self.input_shape(scene)[0]:
             raise DataError(
                 f"{path}: readings have shape {readings.shape}, scene {scene.name!r} has "
-                f"{g.n_rows}+{g.n_cols} strips (pass --scene for another sensor)"
+                f"{self.input_shape(scene)[0]} readings ({g.n_rows}+{g.n_cols} strips, layout {g.layout!r}; "
+                "pass --scene for another sensor)"
             )
         if pressure.shape != (len(readings), g.n_rows, g.n_cols):
             raise DataError(
@@ -236,6 +249,8 @@ class StripsTask(Task):
         pressure = arrays["pressure"].astype(np.float32, copy=True)
         flip_y = rng.random(len(readings)) < 0.5
         flip_x = rng.random(len(readings)) < 0.5
+        if g.layout != "orthogonal":
+            return _mirrored(readings, pressure, flip_y, flip_x, scene), {"pressure": pressure}
         rows, cols = readings[:, : g.n_rows], readings[:, g.n_rows :]
         rows[flip_y] = rows[flip_y, ::-1]
         cols[flip_x] = cols[flip_x, ::-1]
@@ -275,6 +290,28 @@ class StripsTask(Task):
         from tactile_learn.nets.strips import strip_loss
 
         return strip_loss(output, targets["pressure"])
+
+
+def _mirrored(
+    readings: np.ndarray, pressure: np.ndarray, flip_y: np.ndarray, flip_x: np.ndarray, scene: Scene
+) -> np.ndarray:
+    """Mirror frames of any layout in place (maps) and by channel permutation (readings); a mirror
+    that is no symmetry of the layout (a +45 diagonal layer alone under one flip) is replaced by the
+    half-turn (both flips), which is one for every layout."""
+    from synth.sensors.strip_layouts import StripLayout
+
+    layout = StripLayout(scene.sensor.geometry)
+    perms = {(fy, fx): layout.flip_permutation(fy, fx) for fy in (False, True) for fx in (False, True)}
+    for (fy, fx), perm in perms.items():
+        sel = (flip_y == fy) & (flip_x == fx)
+        if not (fy or fx) or not sel.any():
+            continue
+        if perm is None:  # the half-turn maps every layout onto itself
+            perm, fy, fx = perms[(True, True)], True, True
+        if perm is not None:
+            readings[sel] = readings[sel][:, perm]
+            pressure[sel] = pressure[sel][:, :: -1 if fy else 1, :: -1 if fx else 1]
+    return readings
 
 
 def _checked_model(estimator: Estimator) -> Any:

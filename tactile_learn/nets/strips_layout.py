@@ -1,0 +1,125 @@
+"""The strip inverse for any layout (``synth.sensors.strip_layouts``): C readings -> N x M map.
+
+The orthogonal networks (``strips``, ``strips_general``) read N + M strip loads; other layouts add
+channels that see the map along other lines (diagonal strips), with a position weight (two-ended
+strips) or over part of a strip (taps). This network keeps the orthogonal network's structure and
+adds what the extra channels say at every crossing:
+
+1. :class:`LayoutLoads` inverts each channel's readout in-graph (series divider or current
+   division, as ``StripSensor.invert_readings``);
+2. the row and column strips' total loads (ends and sections summed) feed the row and column
+   encoders, the classical normalised product and the global context (every channel's load);
+3. *back-projections*: for every channel group (e.g. the +45 strips, the rows' far ends) each
+   channel's share (load over its segments) is spread over the cells it reads, giving one map per
+   group. At a real contact every group's map is high; at a ghost crossing the diagonal strips (or
+   the two ends' balance) disagree, which the per-crossing layers learn to use;
+4. the same axial mixing blocks and softplus head as architecture 1.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from synth.scene import Scene
+from synth.sensors.strips import StripSensor
+from tactile_learn.nets.strips import SIZES, _Axial, _encoder
+
+__all__ = ["LayoutLoads", "LayoutStripNet"]
+
+#: the ``arch`` entry of the normalisation statistics of a layout network
+ARCH = 3
+
+
+class LayoutLoads(nn.Module):
+    """Readings (V) -> channel loads, the readout inverse of ``StripSensor.invert_readings``."""
+
+    segments: torch.Tensor
+    linear: torch.Tensor
+
+    def __init__(self, scene: Scene) -> None:
+        super().__init__()
+        c = scene.sensor.readout
+        sensor = StripSensor(scene.sensor)
+        self.offset = float(c.offset_v)
+        self.gain = float(c.amplifier_gain)
+        self.v_unloaded = float(sensor.readout.v_unloaded)
+        self.supply = float(c.supply_v)
+        self.reference = float(c.reference_ohm)
+        self.r0 = float(scene.sensor.piezo.strip_resistance_ohm)
+        self.register_buffer("segments", torch.from_numpy(sensor.layout.segments.astype(np.float32)))
+        self.register_buffer("linear", torch.from_numpy(sensor.layout.linear.astype(np.float32)))
+
+    def forward(self, volts: torch.Tensor) -> torch.Tensor:
+        divider = self.v_unloaded + (volts - self.offset) / self.gain
+        # same clamps as the numpy inverse: a divider voltage outside (0, supply) is not physical
+        divider = divider.clamp(1e-9 * self.supply, self.supply * (1 - 1e-9))
+        resistance = self.reference * (self.supply / divider - 1.0)
+        series = (1.0 - resistance / self.r0).clamp(0.0, 1.0)
+        current = ((volts - self.offset) / (self.gain * self.supply / 4.0)).clamp_min(0.0)
+        return (self.linear * current + (1.0 - self.linear) * series) * self.segments
+
+
+class LayoutStripNet(nn.Module):
+    """Readings of any layout -> map (module docstring)."""
+
+    to_rows: torch.Tensor
+    to_cols: torch.Tensor
+    spread: torch.Tensor
+
+    def __init__(self, scene: Scene, stats: dict[str, Any], size: str) -> None:
+        super().__init__()
+        enc, hidden, context, axial = SIZES[size]
+        sensor = StripSensor(scene.sensor)
+        layout = sensor.layout
+        self.n_rows, self.n_cols = layout.n_rows, layout.n_cols
+        self.loads = LayoutLoads(scene)
+        self.load_scale = float(stats["load_scale"])
+        self.pressure_scale = float(stats["pressure_scale_kpa"])
+        to_rows, to_cols = layout.strip_totals
+        self.register_buffer("to_rows", torch.from_numpy(to_rows.astype(np.float32)))
+        self.register_buffer("to_cols", torch.from_numpy(to_cols.astype(np.float32)))
+        # (C, G * N * M): channel c's share spread over its cells, in its group's map
+        cells = layout.weights.sum(axis=1).reshape(layout.n_channels, -1)
+        spread = np.zeros((layout.n_channels, len(layout.groups), cells.shape[1]), np.float32)
+        for g, group in enumerate(layout.groups):
+            rows = slice(group.start, group.stop)
+            spread[rows, g] = (cells[rows] > 0) / layout.segments[rows, None]
+        self.n_groups = len(layout.groups)
+        self.register_buffer("spread", torch.from_numpy(spread.reshape(layout.n_channels, -1)))
+        self.row_encoder = _encoder(enc)
+        self.col_encoder = _encoder(enc)
+        self.context = nn.Sequential(
+            nn.Linear(layout.n_channels, context),
+            nn.ReLU(),
+            nn.Linear(context, context),
+            nn.ReLU(),
+            nn.Linear(context, hidden),
+        )
+        self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
+        self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
+        self.cell_proj = nn.Conv2d(1 + self.n_groups, hidden, 1, bias=False)
+        self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(axial)])
+        self.head = nn.Conv2d(hidden, 1, 1)
+
+    def forward(self, readings: torch.Tensor) -> torch.Tensor:
+        loads = self.loads(readings) / self.load_scale
+        rows = loads @ self.to_rows
+        cols = loads @ self.to_cols
+        row_feat = torch.cat([self.row_encoder(rows.unsqueeze(1)), rows.unsqueeze(1)], dim=1)
+        col_feat = torch.cat([self.col_encoder(cols.unsqueeze(1)), cols.unsqueeze(1)], dim=1)
+        total = 0.5 * (rows.sum(dim=1) + cols.sum(dim=1)).clamp_min(1e-3)
+        product = (rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]).unsqueeze(1)
+        spread = (loads @ self.spread).reshape(-1, self.n_groups, self.n_rows, self.n_cols)
+        x = (
+            self.row_proj(row_feat).unsqueeze(3)
+            + self.col_proj(col_feat).unsqueeze(2)
+            + self.context(loads)[:, :, None, None]
+            + self.cell_proj(torch.cat([product, spread], dim=1))
+        )
+        x = self.blocks(torch.relu(x))
+        out = nn.functional.softplus(self.head(x).squeeze(1), beta=4.0)
+        return out * self.pressure_scale
