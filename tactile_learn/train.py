@@ -8,10 +8,19 @@
   early stopping after ``patience`` epochs without improvement.
 - ``RUN/checkpoint.pt`` (everything to resume) is written atomically every epoch; ``RUN/model.pt``
   (best weights + what export needs), ``RUN/metrics.json`` and ``RUN/loss.png`` at the end.
+- Multi-process (``torchrun --nproc-per-node N -m tactile_learn.cli train ...``): when torchrun's
+  ``WORLD_SIZE`` is above 1 the same loop runs under ``DistributedDataParallel`` on the gloo backend
+  (CPU). Every rank walks the epoch's shuffled batches and trains on every N-th (rank ``r`` on
+  batches ``r, r + N, ...``, each augmented with its own ``SeedSequence(seed, spawn_key=(epoch,
+  batch))``); DDP averages the gradients, so a step sees N batches and an epoch has 1/N the steps of
+  one process over the same data. Rank 0 validates, decides the best epoch and early stopping for
+  all ranks, and alone writes the checkpoint, ``model.pt`` and the metrics; the weights stay
+  identical on every rank (``weights_sha256`` in the result).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -105,9 +114,69 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
     return True
 
 
+class _TrainStep(torch.nn.Module):
+    """The task's training forward as a module's ``forward``: DDP synchronises gradients only for
+    what runs through the wrapped module's ``forward`` (a general strip net's ``train_outputs``)."""
+
+    def __init__(self, net: torch.nn.Module, task_name: str) -> None:
+        super().__init__()
+        self.net = net
+        self.task_name = task_name
+
+    def forward(self, x: torch.Tensor) -> Any:
+        return get_task(self.task_name).train_forward(self.net, x)
+
+
+def _world() -> tuple[int, int, bool]:
+    """(rank, world size, whether this call started the process group): torchrun's environment,
+    joined to a gloo process group (one already started is used as it is); (0, 1, False) without it."""
+    import torch.distributed as dist
+
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1 and not dist.is_initialized():
+        return 0, 1, False
+    started = not dist.is_initialized()
+    if started:
+        dist.init_process_group("gloo")
+    return dist.get_rank(), dist.get_world_size(), started
+
+
+def _broadcast(value: Any, world: int) -> Any:
+    """Rank 0's ``value`` on every rank."""
+    if world == 1:
+        return value
+    import torch.distributed as dist
+
+    box = [value]
+    dist.broadcast_object_list(box, src=0)
+    return box[0]
+
+
+def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
+    """SHA-256 of a network's weights (names and bytes): equal digests, equal networks."""
+    digest = hashlib.sha256()
+    for name in sorted(state_dict):
+        digest.update(name.encode())
+        digest.update(state_dict[name].detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
+
+
 def train(config: TrainConfig, resume: bool = False, progress: bool | None = None) -> dict[str, Any]:
-    """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``)."""
+    """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``).
+
+    Under torchrun with more than one process, data-parallel (module docstring)."""
     config.validate()
+    rank, world, started = _world()
+    try:
+        return _train(config, resume, progress, rank, world)
+    finally:
+        if started:
+            import torch.distributed as dist
+
+            dist.destroy_process_group()
+
+
+def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, world: int) -> dict[str, Any]:
+    lead = rank == 0
     task = get_task(config.task)
     size = config.size or task.net_sizes[0]
     epochs = config.epochs or task.default_epochs
@@ -126,11 +195,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         )
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
-    if out.exists() and any(out.iterdir()) and not resume:
+    # every rank checks before any writes (rank 0 creates the folder)
+    occupied = _broadcast(out.exists() and any(out.iterdir()), world)
+    if occupied and not resume:
         raise DataError(f"{out} already holds a run: pass --resume to continue it, or choose another --out")
     if resume and not ckpt_path.is_file():
         raise DataError(f"{ckpt_path}: nothing to resume")
-    out.mkdir(parents=True, exist_ok=True)
+    if lead:
+        out.mkdir(parents=True, exist_ok=True)
 
     torch.manual_seed(config.seed)
     stats = task.fit_stats(train_set.arrays(keys, limit=task.stats_limit), scene)
@@ -143,11 +215,18 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
-    if batches_per_epoch < 1:
-        raise DataError(f"{config.data}: fewer samples than one batch of {config.batch_size}")
+    if batches_per_epoch < world:
+        raise DataError(f"{config.data}: fewer samples than {world} batch(es) of {config.batch_size} (one per process)")
+    steps_per_epoch = batches_per_epoch // world  # each step: one batch per rank
     scheduler = torch.optim.lr_scheduler.OneCycleLR(
-        optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
+        optimizer, max_lr=config.lr, total_steps=epochs * steps_per_epoch, pct_start=0.15
     )
+    step_module: torch.nn.Module | None = None
+    if world > 1:
+        from torch.nn.parallel import DistributedDataParallel
+
+        # DDP broadcasts rank 0's initial weights, then averages the gradients of every step
+        step_module = DistributedDataParallel(_TrainStep(net, config.task))
     metric, higher_better = task.primary_metric
     state: dict[str, Any] = {
         "epoch": 0,
@@ -182,12 +261,20 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
         net.train()
         losses = []
-        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
+        show = progress if lead else False
+        with progress_bar(steps_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=show) as bar:
             for i, arrays in enumerate(train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)):
-                if i >= batches_per_epoch:
+                if i >= steps_per_epoch * world:
                     break
-                x, targets = task.training_batch(arrays, scene, rng)
-                output = task.train_forward(net, torch.from_numpy(x))
+                if step_module is not None:
+                    if i % world != rank:
+                        continue  # another rank's batch (every rank walks the same shuffled order)
+                    batch_rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch, i)))
+                    x, targets = task.training_batch(arrays, scene, batch_rng)
+                    output = step_module(torch.from_numpy(x))
+                else:
+                    x, targets = task.training_batch(arrays, scene, rng)
+                    output = task.train_forward(net, torch.from_numpy(x))
                 loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
                 if not torch.isfinite(loss):
                     raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
@@ -200,7 +287,9 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 bar.update()
                 if i % 20 == 0:
                     bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
-        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val)
+        # rank 0 validates and decides for everyone (the weights are the same on every rank)
+        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val) if lead else {}
+        val_metrics = _broadcast(val_metrics, world)
         value = float(val_metrics[metric])
         improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
         if improved:
@@ -216,6 +305,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 "seconds": state["seconds"],
             }
         )
+        if world > 1:
+            state["history"][-1]["train_loss"] = _mean_over_ranks(float(np.mean(losses)), world)
+        if not lead:
+            continue
         save_torch(
             ckpt_path,
             {
@@ -234,6 +327,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
             )
 
     net.load_state_dict(state["best_state"])
+    digest = weights_digest(state["best_state"])
+    if not lead:
+        # the other ranks hold the same weights; rank 0 writes the run
+        return {"rank": rank, "world_size": world, "weights_sha256": digest, "epochs_run": state["epoch"]}
     final = _scalars(task.evaluate(TorchEstimator(net, config.task, scene), val))
     result = {
         "task": config.task,
@@ -246,6 +343,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "best_epoch": state["best_epoch"],
         "train_seconds": state["seconds"],
         "threads": torch.get_num_threads(),
+        "world_size": world,
+        "weights_sha256": digest,
         "val_metrics": final,
         "history": state["history"],
         "config": asdict(config),
@@ -265,6 +364,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     atomic_write_json(out / "metrics.json", result)
     _loss_plot(state["history"], out / "loss.png", metric)
     return result
+
+
+def _mean_over_ranks(value: float, world: int) -> float:
+    import torch.distributed as dist
+
+    tensor = torch.tensor([value], dtype=torch.float64)
+    dist.all_reduce(tensor)
+    return float(tensor.item()) / world
 
 
 def _read_init(source: str, size: str) -> dict[str, Any]:

@@ -39,8 +39,8 @@ Readings order (``readings`` (B, C)), per layout:
 - ``two_ended`` (C = 2 (N + M)): the rows' near ends (x = 0), the rows' far ends, the columns' near
   ends (y = 0), the columns' far ends;
 - ``taps`` (C = T (N + M), T = ``taps``): row ``i``'s sections ``0..T-1`` along x at ``i T + k``,
-  then column ``j``'s sections along y at ``N T + j T + k``. The taps split a strip of ``L``
-  segments into sections of ``floor`` / ``ceil`` of ``L / T`` segments.
+  then column ``j``'s sections along y at ``N T + j T + k``. The taps sit at the segment boundaries
+  nearest to ``k L / T`` (``L`` segments), symmetric about the strip's middle.
 
 Gains (``latent_strip_gain``) are per physical strip: rows, columns, then diagonals in the order above.
 """
@@ -171,8 +171,10 @@ class StripLayout:
     def flip_permutation(self, flip_y: bool, flip_x: bool) -> np.ndarray | None:
         """Channel order of the mirrored array (mirror the map's rows and/or columns), or ``None``
         where the mirror is no symmetry of the layout (a +45 layer alone becomes a -45 one)."""
-        w = self.weights[:, :, :: -1 if flip_y else 1, :: -1 if flip_x else 1]
-        index = {self.weights[c].tobytes(): c for c in range(self.n_channels)}
+        # rounded: a two-ended strip's mirrored (1 - t) equals t only to rounding
+        weights = np.round(self.weights, 9) + 0.0  # + 0.0: no -0.0 keys
+        w = weights[:, :, :: -1 if flip_y else 1, :: -1 if flip_x else 1]
+        index = {weights[c].tobytes(): c for c in range(self.n_channels)}
         perm = [index.get(np.ascontiguousarray(w[c]).tobytes()) for c in range(self.n_channels)]
         if any(p is None for p in perm):
             return None
@@ -181,7 +183,10 @@ class StripLayout:
 
 def _sections(strips: np.ndarray, taps: int, along: np.ndarray, length: int) -> np.ndarray:
     """Split every strip of ``strips`` (S, L, N, M) into ``taps`` sections along ``along``."""
-    edges = (np.arange(taps + 1) * length) // taps
+    # taps at the segment boundaries nearest to even spacing, symmetric about the strip's middle
+    # (a mirrored array is then the same array: the training augmentation relies on it)
+    edges = np.floor(np.arange(taps + 1) * length / taps + 0.5).astype(int)
+    edges[taps - np.arange(taps // 2 + 1)] = length - edges[: taps // 2 + 1]
     section = np.searchsorted(edges, along, side="right") - 1  # (N, M)
     out = np.zeros((len(strips), taps, *strips.shape[1:]))
     for k in range(taps):

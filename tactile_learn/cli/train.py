@@ -16,6 +16,9 @@ EXAMPLES = """\
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small --resume
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
+  # data-parallel on N processes (DDP, gloo, CPU): each rank trains on every N-th batch, rank 0 writes the run
+  torchrun --nproc-per-node 2 -m tactile_learn.cli train --task strips --data data/s16-train --val data/s16-val \
+      --out runs/s16-ddp --threads 1
 Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metrics.json and RUN/loss.png."""
 
 
@@ -60,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
         init=args.init,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
-    if not args.quiet:
+    if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports
         summary = {k: result[k] for k in ("task", "size", "epochs_run", "best_epoch", "train_seconds", "val_metrics")}
         print(json_dumps(summary))
     return 0

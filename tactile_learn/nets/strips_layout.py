@@ -10,10 +10,13 @@ adds what the extra channels say at every crossing:
 2. the row and column strips' total loads (ends and sections summed) feed the row and column
    encoders, the classical normalised product and the global context (every channel's load);
 3. *back-projections*: for every channel group (e.g. the +45 strips, the rows' far ends) each
-   channel's share (load over its segments) is spread over the cells it reads, giving one map per
-   group. At a real contact every group's map is high; at a ghost crossing the diagonal strips (or
-   the two ends' balance) disagree, which the per-crossing layers learn to use;
-4. the same axial mixing blocks and softplus head as architecture 1.
+   channel's load is spread over the cells it reads, giving one map per group;
+4. *unrolled refinement*: :data:`REFINE_STEPS` multiplicative (MART/ISRA-like) updates of the
+   classical product map against every channel, with the cell-level linear model ``L = A x`` (``A``:
+   the layout's channel weights summed over layers, no cover blur): a ghost crossing that the
+   diagonal strips (or the two ends' balance, or the taps) do not see loses its load. The refined
+   map is a further per-crossing input, so the network starts from what the extra channels say;
+5. the same axial mixing blocks and softplus head as architecture 1.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ __all__ = ["LayoutLoads", "LayoutStripNet"]
 
 #: the ``arch`` entry of the normalisation statistics of a layout network
 ARCH = 3
+#: multiplicative refinement steps unrolled in the graph
+REFINE_STEPS = 4
 
 
 class LayoutLoads(nn.Module):
@@ -69,6 +74,7 @@ class LayoutStripNet(nn.Module):
     to_rows: torch.Tensor
     to_cols: torch.Tensor
     spread: torch.Tensor
+    system: torch.Tensor
 
     def __init__(self, scene: Scene, stats: dict[str, Any], size: str) -> None:
         super().__init__()
@@ -87,9 +93,10 @@ class LayoutStripNet(nn.Module):
         spread = np.zeros((layout.n_channels, len(layout.groups), cells.shape[1]), np.float32)
         for g, group in enumerate(layout.groups):
             rows = slice(group.start, group.stop)
-            spread[rows, g] = (cells[rows] > 0) / layout.segments[rows, None]
+            spread[rows, g] = cells[rows] > 0
         self.n_groups = len(layout.groups)
         self.register_buffer("spread", torch.from_numpy(spread.reshape(layout.n_channels, -1)))
+        self.register_buffer("system", torch.from_numpy(cells.astype(np.float32)))  # (C, N*M)
         self.row_encoder = _encoder(enc)
         self.col_encoder = _encoder(enc)
         self.context = nn.Sequential(
@@ -101,7 +108,7 @@ class LayoutStripNet(nn.Module):
         )
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
-        self.cell_proj = nn.Conv2d(1 + self.n_groups, hidden, 1, bias=False)
+        self.cell_proj = nn.Conv2d(2 + self.n_groups, hidden, 1, bias=False)
         self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(axial)])
         self.head = nn.Conv2d(hidden, 1, 1)
 
@@ -114,12 +121,22 @@ class LayoutStripNet(nn.Module):
         total = 0.5 * (rows.sum(dim=1) + cols.sum(dim=1)).clamp_min(1e-3)
         product = (rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]).unsqueeze(1)
         spread = (loads @ self.spread).reshape(-1, self.n_groups, self.n_rows, self.n_cols)
+        refined = self.refine(product.flatten(1), loads).reshape_as(product)
         x = (
             self.row_proj(row_feat).unsqueeze(3)
             + self.col_proj(col_feat).unsqueeze(2)
             + self.context(loads)[:, :, None, None]
-            + self.cell_proj(torch.cat([product, spread], dim=1))
+            + self.cell_proj(torch.cat([product, refined, spread], dim=1))
         )
         x = self.blocks(torch.relu(x))
         out = nn.functional.softplus(self.head(x).squeeze(1), beta=4.0)
         return out * self.pressure_scale
+
+    def refine(self, x: torch.Tensor, loads: torch.Tensor) -> torch.Tensor:
+        """:data:`REFINE_STEPS` updates ``x <- x * A^T L / A^T A x`` (both in normalised load units)."""
+        measured = loads @ self.system  # A^T L: fixed over the steps
+        for _ in range(REFINE_STEPS):
+            predicted = (x @ self.system.T) @ self.system
+            # 1e-4 normalised load units: a cell no channel sees keeps its value instead of 0/0
+            x = x * (measured + 1e-4) / (predicted + 1e-4)
+        return x

@@ -19,7 +19,16 @@ from tactile_learn.validation import as_batch
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["CHECK_OUTPUTS", "StripsTask", "frame_groups"]
+__all__ = [
+    "CHECK_OUTPUTS",
+    "StripsTask",
+    "crossing_pressure",
+    "distinct_crossings",
+    "frame_groups",
+    "ghost_energy",
+    "ghost_to_real",
+    "pairing",
+]
 
 #: the exported graph's further outputs, per frame: the readings residual of its map (in noise
 #: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
@@ -61,6 +70,37 @@ def frame_groups(extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, np.
     return groups
 
 
+def crossing_pressure(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the estimated pressure summed on the two real crossings of contacts 1 and 2
+    (row 1, column 1) + (row 2, column 2), and on the two ghost crossings (row 1, column 2) +
+    (row 2, column 1)."""
+    n, m = pred.shape[1:]
+    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
+    rows = np.clip((xy[..., 1] // pitch_mm).astype(int), 0, n - 1)
+    cols = np.clip((xy[..., 0] // pitch_mm).astype(int), 0, m - 1)
+    b = np.arange(len(pred))
+    real = pred[b, rows[:, 0], cols[:, 0]] + pred[b, rows[:, 1], cols[:, 1]]
+    ghost = pred[b, rows[:, 0], cols[:, 1]] + pred[b, rows[:, 1], cols[:, 0]]
+    return real, ghost
+
+
+def ghost_to_real(real: np.ndarray, ghost: np.ndarray) -> np.ndarray:
+    return np.asarray((ghost + 1e-9) / (real + 1e-9))  # 1e-9 kPa: an empty estimate counts as a spread, not 0/0
+
+
+def ghost_energy(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
+    """Per frame: the share of the map's total (its summed pressure) on the two ghost crossings."""
+    _, ghost = crossing_pressure(pred, extra, pitch_mm)
+    total = pred.reshape(len(pred), -1).sum(axis=1).astype(np.float64)
+    # an empty map holds no ghost load: 0, not 0/0
+    return np.divide(ghost, total, out=np.zeros_like(total), where=total > 0)
+
+
+def distinct_crossings(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
+    """Frames whose first two contacts are more than a pitch apart in x and y (two ghost crossings)."""
+    return _apart(extra, pitch_mm)
+
+
 def pairing(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, float]:
     """How an estimate pairs the rows and columns of two contacts on distinct rows and columns.
 
@@ -70,14 +110,8 @@ def pairing(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> 
     mass on both pairings, the honest answer when the readings cannot tell), ``confident_wrong``
     (ratio > 2: a pairing the readings do not support, invented).
     """
-    n, m = pred.shape[1:]
-    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
-    rows = np.clip((xy[..., 1] // pitch_mm).astype(int), 0, n - 1)
-    cols = np.clip((xy[..., 0] // pitch_mm).astype(int), 0, m - 1)
-    b = np.arange(len(pred))
-    real = pred[b, rows[:, 0], cols[:, 0]] + pred[b, rows[:, 1], cols[:, 1]]
-    ghost = pred[b, rows[:, 0], cols[:, 1]] + pred[b, rows[:, 1], cols[:, 0]]
-    ratio = (ghost + 1e-9) / (real + 1e-9)  # 1e-9 kPa: an empty estimate counts as a spread, not 0/0
+    real, ghost = crossing_pressure(pred, extra, pitch_mm)
+    ratio = ghost_to_real(real, ghost)
     return {
         "ghost_to_real_median": float(np.median(ratio)) if len(ratio) else float("nan"),
         "confident_right": float(np.mean(ratio < 0.5)) if len(ratio) else float("nan"),
