@@ -10,10 +10,11 @@
   (best weights + what export needs), ``RUN/metrics.json`` and ``RUN/loss.png`` at the end.
 - Multi-process (``torchrun --nproc-per-node N -m tactile_learn.cli train ...``): when torchrun's
   ``WORLD_SIZE`` is above 1 the same loop runs under ``DistributedDataParallel`` on the gloo backend
-  (CPU). Every rank walks the epoch's shuffled batches and trains on every N-th (rank ``r`` on
-  batches ``r, r + N, ...``, each augmented with its own ``SeedSequence(seed, spawn_key=(epoch,
-  batch))``); DDP averages the gradients, so a step sees N batches and an epoch has 1/N the steps of
-  one process over the same data. Rank 0 validates, decides the best epoch and early stopping for
+  (CPU). Every rank draws the same shuffled, augmented batches as one process would (the same
+  random stream) and trains on its shard of each (rank ``r``: frames ``r, r + N, ...``); DDP
+  averages the ranks' gradients, which for equal shards is the whole batch's gradient (up to the
+  loss's per-batch normalisation), so the recipe - batch size, steps, schedule - is one process's
+  and each rank computes 1/N of it. Rank 0 validates, decides the best epoch and early stopping for
   all ranks, and alone writes the checkpoint, ``model.pt`` and the metrics; the weights stay
   identical on every rank (``weights_sha256`` in the result).
 """
@@ -215,11 +216,13 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
-    if batches_per_epoch < world:
-        raise DataError(f"{config.data}: fewer samples than {world} batch(es) of {config.batch_size} (one per process)")
-    steps_per_epoch = batches_per_epoch // world  # each step: one batch per rank
+    if batches_per_epoch < 1:
+        raise DataError(f"{config.data}: fewer samples than one batch of {config.batch_size}")
+    if config.batch_size % world:
+        # equal shards: the mean of the ranks' gradients is then the whole batch's gradient
+        raise ConfigError(f"--batch-size: {config.batch_size} does not split into {world} equal shards (processes)")
     scheduler = torch.optim.lr_scheduler.OneCycleLR(
-        optimizer, max_lr=config.lr, total_steps=epochs * steps_per_epoch, pct_start=0.15
+        optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
     )
     step_module: torch.nn.Module | None = None
     if world > 1:
@@ -262,16 +265,17 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
         net.train()
         losses = []
         show = progress if lead else False
-        with progress_bar(steps_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=show) as bar:
+        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=show) as bar:
             for i, arrays in enumerate(train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)):
-                if i >= steps_per_epoch * world:
+                if i >= batches_per_epoch:
                     break
                 if step_module is not None:
-                    if i % world != rank:
-                        continue  # another rank's batch (every rank walks the same shuffled order)
-                    batch_rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch, i)))
-                    x, targets = task.training_batch(arrays, scene, batch_rng)
-                    output = step_module(torch.from_numpy(x))
+                    # every rank draws the whole batch and its augmentation from the same random
+                    # stream (as one process would), then trains on its own shard of the frames
+                    x, targets = task.training_batch(arrays, scene, rng)
+                    x, targets = x[rank::world], {k: v[rank::world] for k, v in targets.items()}
+                    output = step_module(torch.from_numpy(np.ascontiguousarray(x)))
+                    targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
                 else:
                     x, targets = task.training_batch(arrays, scene, rng)
                     output = task.train_forward(net, torch.from_numpy(x))
