@@ -123,6 +123,17 @@ def _encoder(channels: int) -> nn.Sequential:
     )
 
 
+def context_mlp(inputs: int, width: int, out: int) -> nn.Sequential:
+    """The global context: an MLP over every strip's (or channel's) load at once."""
+    return nn.Sequential(
+        nn.Linear(inputs, width),
+        nn.ReLU(),
+        nn.Linear(width, width),
+        nn.ReLU(),
+        nn.Linear(width, out),
+    )
+
+
 class StripNet(nn.Module):
     """Readings -> map, with crossing features built by broadcast sums (cheap: no N x M convolutions
     before the pair stage, and no 3 x 3 convolutions at all)."""
@@ -138,13 +149,7 @@ class StripNet(nn.Module):
         self.row_encoder = _encoder(enc)
         self.col_encoder = _encoder(enc)
         # global context: every strip's load at once (magnitudes decide which rows pair with which columns)
-        self.context = nn.Sequential(
-            nn.Linear(g.n_rows + g.n_cols, context),
-            nn.ReLU(),
-            nn.Linear(context, context),
-            nn.ReLU(),
-            nn.Linear(context, hidden),
-        )
+        self.context = context_mlp(g.n_rows + g.n_cols, context, hidden)
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.product_proj = nn.Conv2d(1, hidden, 1, bias=False)

@@ -29,7 +29,7 @@ from torch import nn
 
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
-from tactile_learn.nets.strips import SIZES, _Axial, _encoder
+from tactile_learn.nets.strips import SIZES, StripLoads, _Axial, _encoder, context_mlp
 
 __all__ = ["LayoutLoads", "LayoutStripNet"]
 
@@ -39,33 +39,22 @@ ARCH = 3
 REFINE_STEPS = 4
 
 
-class LayoutLoads(nn.Module):
-    """Readings (V) -> channel loads, the readout inverse of ``StripSensor.invert_readings``."""
+class LayoutLoads(StripLoads):
+    """Readings (V) -> channel loads, the readout inverse of ``StripSensor.invert_readings``: the
+    series divider's inverse (:class:`StripLoads`) or, for current-division channels, linear."""
 
-    segments: torch.Tensor
     linear: torch.Tensor
 
     def __init__(self, scene: Scene) -> None:
-        super().__init__()
-        c = scene.sensor.readout
-        sensor = StripSensor(scene.sensor)
-        self.offset = float(c.offset_v)
-        self.gain = float(c.amplifier_gain)
-        self.v_unloaded = float(sensor.readout.v_unloaded)
-        self.supply = float(c.supply_v)
-        self.reference = float(c.reference_ohm)
-        self.r0 = float(scene.sensor.piezo.strip_resistance_ohm)
-        self.register_buffer("segments", torch.from_numpy(sensor.layout.segments.astype(np.float32)))
-        self.register_buffer("linear", torch.from_numpy(sensor.layout.linear.astype(np.float32)))
+        super().__init__(scene)
+        layout = StripSensor(scene.sensor).layout
+        self.segments = torch.from_numpy(layout.segments.astype(np.float32))  # replaces the buffer
+        self.register_buffer("linear", torch.from_numpy(layout.linear.astype(np.float32)))
 
     def forward(self, volts: torch.Tensor) -> torch.Tensor:
-        divider = self.v_unloaded + (volts - self.offset) / self.gain
-        # same clamps as the numpy inverse: a divider voltage outside (0, supply) is not physical
-        divider = divider.clamp(1e-9 * self.supply, self.supply * (1 - 1e-9))
-        resistance = self.reference * (self.supply / divider - 1.0)
-        series = (1.0 - resistance / self.r0).clamp(0.0, 1.0)
-        current = ((volts - self.offset) / (self.gain * self.supply / 4.0)).clamp_min(0.0)
-        return (self.linear * current + (1.0 - self.linear) * series) * self.segments
+        series = super().forward(volts)
+        current = ((volts - self.offset) / (self.gain * self.supply / 4.0)).clamp_min(0.0) * self.segments
+        return self.linear * current + (1.0 - self.linear) * series
 
 
 class LayoutStripNet(nn.Module):
@@ -99,13 +88,7 @@ class LayoutStripNet(nn.Module):
         self.register_buffer("system", torch.from_numpy(cells.astype(np.float32)))  # (C, N*M)
         self.row_encoder = _encoder(enc)
         self.col_encoder = _encoder(enc)
-        self.context = nn.Sequential(
-            nn.Linear(layout.n_channels, context),
-            nn.ReLU(),
-            nn.Linear(context, context),
-            nn.ReLU(),
-            nn.Linear(context, hidden),
-        )
+        self.context = context_mlp(layout.n_channels, context, hidden)
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.cell_proj = nn.Conv2d(2 + self.n_groups, hidden, 1, bias=False)
