@@ -1,4 +1,5 @@
-"""Soft strip array: orthogonal conductive-rubber strips, one reading per strip.
+"""Soft strip array: orthogonal conductive-rubber strips, one reading per strip (other layouts:
+diagonal strips, two-ended readout, taps - ``synth.sensors.strip_layouts``).
 
 Physics, from stimulus to reading (every stage is its own object, so tests can check each):
 
@@ -456,9 +457,10 @@ class StripSensor:
     ) -> dict[str, np.ndarray]:
         """Readings and intersection map for the user's pressure ``field`` (kPa, (B, N*s, M*s)).
 
-        ``gains`` (B, N+M) default to 1 (a nominal device); ``noise=True`` needs ``rng``.
-        Returns ``readings`` (B, N+M) float32 V, ``pressure`` (B, N, M) float32 kPa and
-        ``readings_clean``.
+        ``gains`` (B, strips) default to 1 (a nominal device; N+M strips, plus the diagonal strips
+        of layout 'diagonal'); ``noise=True`` needs ``rng``. Returns ``readings`` (B, C) float32 V
+        (C = N+M for the orthogonal pair; ``synth.sensors.strip_layouts`` for the others),
+        ``pressure`` (B, N, M) float32 kPa and ``readings_clean``.
         """
         row, col = self.array.segment_stress(field)
         diag = self.array.diagonal_stress(field) if self.array.diag_ops else None
