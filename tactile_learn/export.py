@@ -135,7 +135,14 @@ def export(
         "model_bytes": out.stat().st_size,
         "opset": OPSET,
         "package_version": __version__,
-        "inputs": [{"name": task.input_key, "shape": ["batch", *metadata["input_shape"]], "dtype": "float32"}],
+        "inputs": [
+            {
+                "name": task.input_key,
+                "shape": ["batch", *metadata["input_shape"]],
+                "dtype": "float32",
+                **task.input_layout(scene),
+            }
+        ],
         "outputs": [
             {"name": name, "shape": ["batch", *shape], "dtype": "float32"}
             for name, shape in zip(output_names, out_shapes, strict=True)

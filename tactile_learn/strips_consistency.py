@@ -56,10 +56,10 @@ class StripConsistency:
         return StripSensor(self.scene.sensor)
 
     @cached_property
-    def operators(self) -> tuple[np.ndarray, np.ndarray]:
-        """Row- and column-segment stress from a flat cell map, right-multiplied: (N*M, N*M) each."""
-        k_row, k_col = self.sensor.array.cell_stress_operators()
-        return k_row.T.astype(np.float32).copy(), k_col.T.astype(np.float32).copy()
+    def operators(self) -> list[np.ndarray]:
+        """Segment stress of every layer (rows, columns, diagonals) from a flat cell map,
+        right-multiplied: (N*M, N*M) each."""
+        return [op.T.astype(np.float32).copy() for op in self.sensor.array.layer_cell_operators()]
 
     @cached_property
     def load_noise(self) -> np.ndarray:
@@ -76,24 +76,17 @@ class StripConsistency:
         return np.maximum(arr.reshape(len(arr), -1), 0.0).astype(np.float32)
 
     def model_loads(self, maps: np.ndarray) -> np.ndarray:
-        """Strip loads (B, N+M), rows first, that the maps would produce (see the module docstring)."""
+        """Channel loads (B, C) that the maps would produce, in the layout's readings order (the
+        orthogonal pair: N + M strips, rows first; see the module docstring)."""
         s = self.sensor
         x = self._maps(maps)
-        k_row, k_col = self.operators
         # the operators' truncated kernel can leave -1e-6-sized stress far from any load
-        row = np.maximum(x @ k_row, 0.0).reshape(-1, s.n_rows, s.n_cols)
-        col = np.maximum(x @ k_col, 0.0).reshape(-1, s.n_rows, s.n_cols)
-        f_row = s.law.conductance_gain(row).sum(axis=2)
-        f_col = s.law.conductance_gain(col).sum(axis=1)
-        return np.concatenate([f_row, f_col], axis=1).astype(np.float64)
+        stress = np.stack([np.maximum(x @ k, 0.0) for k in self.operators], axis=1)
+        return s.channel_loads(stress.reshape(len(x), -1, s.n_rows, s.n_cols))
 
     def model_readings(self, maps: np.ndarray) -> np.ndarray:
         """Noise-free readings (V) the maps would produce, unit gains, clipped to the ADC's range."""
-        s = self.sensor
-        loads = self.model_loads(maps)
-        segments = np.concatenate([np.full(s.n_rows, s.n_cols), np.full(s.n_cols, s.n_rows)]).astype(np.float64)
-        resistance = s.config.piezo.strip_resistance_ohm * (1.0 - loads / segments)
-        return np.asarray(s.adc(s.readout.volts(resistance), quantise=False), dtype=np.float32)
+        return np.asarray(self.sensor.readings_from_loads(self.model_loads(maps)), dtype=np.float32)
 
     def residual(self, readings: np.ndarray, maps: np.ndarray) -> dict[str, np.ndarray]:
         """Per frame: ``residual_rel`` and ``residual_sigma`` (module docstring) of ``maps`` against
@@ -120,7 +113,7 @@ class StripConsistency:
 
         x = get_task("strips").check_inputs(readings, self.scene)
         loads = self.sensor.invert_readings(x)
-        n = self.sensor.n_rows
-        rows, cols = loads[:, :n].sum(axis=1), loads[:, n:].sum(axis=1)
+        row_loads, col_loads = self.sensor.layout.row_col_loads(loads)
+        rows, cols = row_loads.sum(axis=1), col_loads.sum(axis=1)
         floor = self.noise_floor * float(np.sqrt(np.sum(self.load_noise**2)))
         return np.asarray(np.abs(rows - cols) / (0.5 * (rows + cols) + floor))

@@ -9,10 +9,20 @@
   early stopping after ``patience`` epochs without improvement.
 - ``RUN/checkpoint.pt`` (everything to resume) is written atomically every epoch; ``RUN/model.pt``
   (best weights + what export needs), ``RUN/metrics.json`` and ``RUN/loss.png`` at the end.
+- Multi-process (``torchrun --nproc-per-node N -m tactile_learn.cli train ...``): when torchrun's
+  ``WORLD_SIZE`` is above 1 the same loop runs under ``DistributedDataParallel`` on the gloo backend
+  (CPU). Every rank draws the same shuffled, augmented batches as one process would (the same
+  random stream) and trains on its shard of each (rank ``r``: frames ``r, r + N, ...``); DDP
+  averages the ranks' gradients, which for equal shards is the whole batch's gradient (up to the
+  loss's per-batch normalisation), so the recipe - batch size, steps, schedule - is one process's
+  and each rank computes 1/N of it. Rank 0 validates, decides the best epoch and early stopping for
+  all ranks, and alone writes the checkpoint, ``model.pt`` and the metrics; the weights stay
+  identical on every rank (``weights_sha256`` in the result).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import time
 from dataclasses import asdict, dataclass
@@ -120,9 +130,69 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
     return True
 
 
+class _TrainStep(torch.nn.Module):
+    """The task's training forward as a module's ``forward``: DDP synchronises gradients only for
+    what runs through the wrapped module's ``forward`` (a general strip net's ``train_outputs``)."""
+
+    def __init__(self, net: torch.nn.Module, task_name: str) -> None:
+        super().__init__()
+        self.net = net
+        self.task_name = task_name
+
+    def forward(self, x: torch.Tensor) -> Any:
+        return get_task(self.task_name).train_forward(self.net, x)
+
+
+def _world() -> tuple[int, int, bool]:
+    """(rank, world size, whether this call started the process group): torchrun's environment,
+    joined to a gloo process group (one already started is used as it is); (0, 1, False) without it."""
+    import torch.distributed as dist
+
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1 and not dist.is_initialized():
+        return 0, 1, False
+    started = not dist.is_initialized()
+    if started:
+        dist.init_process_group("gloo")
+    return dist.get_rank(), dist.get_world_size(), started
+
+
+def _broadcast(value: Any, world: int) -> Any:
+    """Rank 0's ``value`` on every rank."""
+    if world == 1:
+        return value
+    import torch.distributed as dist
+
+    box = [value]
+    dist.broadcast_object_list(box, src=0)
+    return box[0]
+
+
+def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
+    """SHA-256 of a network's weights (names and bytes): equal digests, equal networks."""
+    digest = hashlib.sha256()
+    for name in sorted(state_dict):
+        digest.update(name.encode())
+        digest.update(state_dict[name].detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
+
+
 def train(config: TrainConfig, resume: bool = False, progress: bool | None = None) -> dict[str, Any]:
-    """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``)."""
+    """Train ``config.task``'s network; returns the run's metrics (also in ``RUN/metrics.json``).
+
+    Under torchrun with more than one process, data-parallel (module docstring)."""
     config.validate()
+    rank, world, started = _world()
+    try:
+        return _train(config, resume, progress, rank, world)
+    finally:
+        if started:
+            import torch.distributed as dist
+
+            dist.destroy_process_group()
+
+
+def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, world: int) -> dict[str, Any]:
+    lead = rank == 0
     task = get_task(config.task)
     size = config.size or task.net_sizes[0]
     epochs = config.epochs or task.default_epochs
@@ -148,11 +218,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         )
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
-    if out.exists() and any(out.iterdir()) and not resume:
+    # every rank checks before any writes (rank 0 creates the folder)
+    occupied = _broadcast(out.exists() and any(out.iterdir()), world)
+    if occupied and not resume:
         raise DataError(f"{out} already holds a run: pass --resume to continue it, or choose another --out")
     if resume and not ckpt_path.is_file():
         raise DataError(f"{ckpt_path}: nothing to resume")
-    out.mkdir(parents=True, exist_ok=True)
+    if lead:
+        out.mkdir(parents=True, exist_ok=True)
 
     torch.manual_seed(config.seed)
     stats = task.fit_stats(train_set.arrays(keys, limit=task.stats_limit), scene)
@@ -167,9 +240,18 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
     if batches_per_epoch < 1:
         raise DataError(f"{config.data or config.scene}: fewer samples than one batch of {config.batch_size}")
+    if config.batch_size % world:
+        # equal shards: the mean of the ranks' gradients is then the whole batch's gradient
+        raise ConfigError(f"--batch-size: {config.batch_size} does not split into {world} equal shards (processes)")
     scheduler = torch.optim.lr_scheduler.OneCycleLR(
         optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
     )
+    step_module: torch.nn.Module | None = None
+    if world > 1:
+        from torch.nn.parallel import DistributedDataParallel
+
+        # DDP broadcasts rank 0's initial weights, then averages the gradients of every step
+        step_module = DistributedDataParallel(_TrainStep(net, config.task))
     metric, higher_better = task.primary_metric
     state: dict[str, Any] = {
         "epoch": 0,
@@ -208,7 +290,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
         net.train()
         losses = []
-        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=progress) as bar:
+        show = progress if lead else False
+        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=show) as bar:
             if isinstance(train_set, TouchStream):
                 batches = train_set.epoch_batches(epoch, keys, config.batch_size, rng, drop_last=True)
             else:
@@ -216,8 +299,16 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
             for i, arrays in enumerate(batches):
                 if i >= batches_per_epoch:
                     break
-                x, targets = task.training_batch(arrays, scene, rng)
-                output = task.train_forward(net, torch.from_numpy(x))
+                if step_module is not None:
+                    # every rank draws the whole batch and its augmentation from the same random
+                    # stream (as one process would), then trains on its own shard of the frames
+                    x, targets = task.training_batch(arrays, scene, rng)
+                    x, targets = x[rank::world], {k: v[rank::world] for k, v in targets.items()}
+                    output = step_module(torch.from_numpy(np.ascontiguousarray(x)))
+                    targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
+                else:
+                    x, targets = task.training_batch(arrays, scene, rng)
+                    output = task.train_forward(net, torch.from_numpy(x))
                 loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
                 if not torch.isfinite(loss):
                     raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
@@ -230,7 +321,9 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 bar.update()
                 if i % 20 == 0:
                     bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
-        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val)
+        # rank 0 validates and decides for everyone (the weights are the same on every rank)
+        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val) if lead else {}
+        val_metrics = _broadcast(val_metrics, world)
         value = float(val_metrics[metric])
         improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
         if improved:
@@ -246,6 +339,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
                 "seconds": state["seconds"],
             }
         )
+        if world > 1:
+            state["history"][-1]["train_loss"] = _mean_over_ranks(float(np.mean(losses)), world)
+        if not lead:
+            continue
         save_torch(
             ckpt_path,
             {
@@ -264,6 +361,10 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
             )
 
     net.load_state_dict(state["best_state"])
+    digest = weights_digest(state["best_state"])
+    if not lead:
+        # the other ranks hold the same weights; rank 0 writes the run
+        return {"rank": rank, "world_size": world, "weights_sha256": digest, "epochs_run": state["epoch"]}
     final = _scalars(task.evaluate(TorchEstimator(net, config.task, scene), val))
     result = {
         "task": config.task,
@@ -280,6 +381,8 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "best_epoch": state["best_epoch"],
         "train_seconds": state["seconds"],
         "threads": torch.get_num_threads(),
+        "world_size": world,
+        "weights_sha256": digest,
         "val_metrics": final,
         "history": state["history"],
         "config": asdict(config),
@@ -299,6 +402,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     atomic_write_json(out / "metrics.json", result)
     _loss_plot(state["history"], out / "loss.png", metric)
     return result
+
+
+def _mean_over_ranks(value: float, world: int) -> float:
+    import torch.distributed as dist
+
+    tensor = torch.tensor([value], dtype=torch.float64)
+    dist.all_reduce(tensor)
+    return float(tensor.item()) / world
 
 
 def _read_init(source: str, size: str) -> dict[str, Any]:

@@ -173,12 +173,11 @@ def projection_misfit_ratio(force: float, x: float, y: float) -> float:
     readings = sensor.forward(field)["readings"]
     projection = estimators()[1]
     maps = projection.predict(readings)
-    lr, lc, _, _ = projection._loads(maps.reshape(1, -1).astype(np.float32))
+    model, _ = projection._loads(maps.reshape(1, -1).astype(np.float32))
     loads = sensor.invert_readings(readings)[0]
-    misfit = np.abs(np.concatenate([lr[0], lc[0]]) - loads)
-    intersection_misfit = np.abs(
-        np.concatenate(projection._loads(estimators()[0].predict(readings).reshape(1, -1))[:2], axis=1)[0] - loads
-    )
+    misfit = np.abs(model[0] - loads)
+    start = estimators()[0].predict(readings).reshape(1, -1).astype(np.float32)
+    intersection_misfit = np.abs(projection._loads(start)[0][0] - loads)
     # the refinement never moves away from the readings (it cannot reach them exactly: a map of
     # cell-mean pressures cannot represent a contact much smaller than a cell)
     assert misfit.sum() <= intersection_misfit.sum() + 1e-6

@@ -122,3 +122,27 @@ def test_saturated_frames_are_counted_not_fatal_and_lower_the_recommendation() -
     }
     (best,) = recommend([clean, saturating])  # 0.9 on 80 % of the frames loses to 0.8 on all of them
     assert best["point"] == "a" and best["pearson_r_effective"] == pytest.approx(0.8)
+
+
+def test_a_layout_is_a_design_parameter(tmp_path: Path) -> None:
+    """``strips.geometry.layout`` in a sweep point: the point's scene, wires and (classical) methods."""
+    import dataclasses
+
+    from tactile_learn.sweep import run_point
+
+    path = tmp_path / "layouts.toml"
+    path.write_text(
+        SWEEP.format(train=0).replace("[budget]", '"strips.geometry.layout" = ["orthogonal", "two_ended"]\n[budget]')
+    )
+    config = load_sweep(path)
+    points = sweep_points(config)
+    assert len(points) == 8
+    values = {**points[0], "strips.geometry.layout": "two_ended"}
+    assert wire_count(point_scene(config.base, values)) == 2 * (4 + 4)  # both ends of 4 + 4 strips
+    budget = {
+        **dataclasses.asdict(dataclasses.replace(config.budget, test=32)),
+        "methods": ["intersection", "projection"],
+    }
+    result = run_point(values, config.base.to_dict(), budget, 0, str(tmp_path / "point"))
+    assert result["status"] == "ok", result.get("error")
+    assert result["wires"] == 16 and set(result["methods"]) == {"intersection", "projection"}

@@ -1,4 +1,5 @@
-"""Soft strip array: orthogonal conductive-rubber strips, one reading per strip.
+"""Soft strip array: orthogonal conductive-rubber strips, one reading per strip (other layouts:
+diagonal strips, two-ended readout, taps - ``synth.sensors.strip_layouts``).
 
 Physics, from stimulus to reading (every stage is its own object, so tests can check each):
 
@@ -32,6 +33,7 @@ from synth.errors import InputError
 from synth.mechanics import patch_operator, separable_kernel
 from synth.scene import Scene
 from synth.sensors.base import ArraySpec
+from synth.sensors.strip_layouts import StripLayout
 from synth.sensors.strips_config import DRAWN_PARAMS, StripsConfig, draw_except
 from synth.sensors.strips_config import StripReadout as ReadoutConfig
 from synth.stimuli import DETAIL, KINDS, ContactBatch, Windows, rasterize, window_cells, window_size
@@ -118,6 +120,23 @@ class StripArray:
         # column layer: along segment i (y) and across column j's band (x)
         self.col_y = np.stack([patch_operator(seg_y, r, pos_y, half) for r in k_col.rows]).astype(f32)
         self.col_x = np.stack([patch_operator(col_band, c, pos_x, half) for c in k_col.cols]).astype(f32)
+        # diagonal layers (layout 'diagonal'), each one strip thickness below the one above it: a
+        # diagonal segment sees the mean stress over its whole cell at its depth (strip_layouts)
+        self.layout = StripLayout(g)
+        self.depth_diag_mm = [
+            layers.cover_mm + (k + 2) * layers.strip_thickness_mm for k in range(len(self.layout.layers) - 2)
+        ]
+        self.diag_ops: list[tuple[np.ndarray, np.ndarray]] = []
+        for depth in self.depth_diag_mm:
+            k_diag = separable_kernel(self.h, depth, half, layers.kernel_rank_tol)
+            self.kernel_rel_error = max(self.kernel_rel_error, k_diag.rel_error)
+            self.diag_ops.append(
+                (
+                    np.stack([patch_operator(seg_y, r, pos_y, half) for r in k_diag.rows]).astype(f32),
+                    np.stack([patch_operator(seg_x, c, pos_x, half) for c in k_diag.cols]).astype(f32),
+                )
+            )
+        self._diag_cache: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
         # ground truth: mean surface pressure over each pitch cell (zero weight outside the array)
         self.cell_y = np.zeros((g.n_rows, len(pos_y)), dtype=f32)
         self.cell_y[:, pad : pad + ny] = seg_y
@@ -154,6 +173,16 @@ class StripArray:
         # the separable kernel's truncation can leave -1e-6-sized negatives far from any load
         return np.maximum(row, 0.0), np.maximum(col, 0.0)
 
+    def diagonal_stress(self, field: np.ndarray) -> np.ndarray:
+        """Mean stress (kPa) over every cell at each diagonal layer's depth, (B, D, N, M) (D = 0 for
+        layouts without diagonal strips)."""
+        p = self._check_field(field)
+        out = np.zeros((len(p), len(self.diag_ops), self.n_rows, self.n_cols), np.float32)
+        for k, (dy, dx) in enumerate(self.diag_ops):
+            dy, dx = self._inner(dy), self._inner(dx)
+            out[:, k] = sum((dy[r] @ p @ dx[r].T for r in range(len(dy))), np.zeros(1, np.float32))
+        return np.maximum(out, 0.0)
+
     def cell_pressure(self, field: np.ndarray) -> np.ndarray:
         """Intersection map (B, N, M): mean surface pressure over each pitch cell."""
         p = self._check_field(field)
@@ -172,6 +201,17 @@ class StripArray:
             return np.einsum("rik,rjl->ijkl", ay, bx).reshape(self.n_rows * self.n_cols, -1)
 
         return dense(self.row_y, self.row_x), dense(self.col_y, self.col_x)
+
+    def layer_cell_operators(self) -> list[np.ndarray]:
+        """:meth:`cell_stress_operators` for every layer of the layout, diagonal layers last."""
+        up_y = np.kron(np.eye(self.n_rows), np.ones((self.s, 1)))
+        up_x = np.kron(np.eye(self.n_cols), np.ones((self.s, 1)))
+        ops = list(self.cell_stress_operators())
+        for dy, dx in self.diag_ops:
+            ay = self._inner(dy).astype(np.float64) @ up_y
+            bx = self._inner(dx).astype(np.float64) @ up_x
+            ops.append(np.einsum("rik,rjl->ijkl", ay, bx).reshape(self.n_rows * self.n_cols, -1))
+        return ops
 
     # -- windowed path (simulated contacts: work only where there is load) ---------------------
 
@@ -227,7 +267,30 @@ class StripArray:
             out["col"] = finish(first[:, r_row : r_row + r_col], tcol)
         if cells:
             out["cells"] = finish(first[:, r_row + r_col :], tcell)
+        if stress and self.diag_ops:
+            # separate products: the orthogonal layers' tables (and their float32 sums) stay as they were
+            parts = []
+            for dy, dx in self._diag_tables(size):
+                rank = dy.shape[1]
+                part = (dy[iy].reshape(c, -1, size) @ vals).reshape(c, rank, n, size)
+                parts.append(finish(part, dx))
+            out["diag"] = np.stack(parts, axis=1)
         return out
+
+    def _diag_tables(self, size: int) -> list[tuple[np.ndarray, np.ndarray]]:
+        cached = self._diag_cache.get(size)
+        if cached is None:
+            cached = []
+            for dy, dx in self.diag_ops:
+                y = np.ascontiguousarray(
+                    np.lib.stride_tricks.sliding_window_view(dy, size, axis=-1).transpose(2, 0, 1, 3)
+                )
+                view = np.lib.stride_tricks.sliding_window_view(dx, size, axis=-1).transpose(2, 0, 1, 3)
+                pos, rank, m, _ = view.shape
+                x = np.ascontiguousarray(view.transpose(0, 1, 3, 2)).reshape(pos, rank * size, m)
+                cached.append((y, x))
+            self._diag_cache[size] = cached
+        return cached
 
 
 class PiezoLaw:
@@ -318,7 +381,10 @@ class StripSensor:
         self.adc = Adc(config.readout.adc_bits, config.readout.supply_v)
         g = config.geometry
         self.n_rows, self.n_cols = g.n_rows, g.n_cols
-        self.n_strips = g.n_rows + g.n_cols
+        self.layout = self.array.layout
+        #: physical strips (one gain each) and readings (one per channel of the layout)
+        self.n_strips = self.layout.n_strips
+        self.n_channels = self.layout.n_channels
 
     @property
     def field_shape(self) -> tuple[int, int]:
@@ -339,9 +405,40 @@ class StripSensor:
         f_col = self.law.conductance_gain(col_stress, g_col).mean(axis=1)
         return r0 * (1.0 - np.concatenate([f_row, f_col], axis=1))
 
-    def clean_readings(self, row_stress: np.ndarray, col_stress: np.ndarray, gains: np.ndarray) -> np.ndarray:
-        """Noise-free readings (V), clipped to the ADC's range but not quantised."""
-        return self.adc(self.readout.volts(self.strip_resistance(row_stress, col_stress, gains)), quantise=False)
+    def clean_readings(
+        self,
+        row_stress: np.ndarray,
+        col_stress: np.ndarray,
+        gains: np.ndarray,
+        diag_stress: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Noise-free readings (V), clipped to the ADC's range but not quantised; ``diag_stress``
+        (B, D, N, M) for the diagonal layers of layout 'diagonal'."""
+        if self.layout.orthogonal:
+            return self.adc(self.readout.volts(self.strip_resistance(row_stress, col_stress, gains)), quantise=False)
+        layers = [row_stress[:, None], col_stress[:, None]]
+        if diag_stress is not None:
+            layers.append(diag_stress)
+        stress = np.concatenate(layers, axis=1)
+        if stress.shape[1] != len(self.layout.layers):
+            raise ValueError(f"stress of {stress.shape[1]} layers for a layout of {len(self.layout.layers)}")
+        return self.readings_from_loads(self.channel_loads(stress, gains))
+
+    def channel_loads(self, stress: np.ndarray, gains: np.ndarray | float = 1.0) -> np.ndarray:
+        """Every channel's load (B, C), float64: the weighted sum of the conductance share ``f`` of
+        the segments it reads, for stress (B, L, N, M) on every layer and per-strip ``gains``."""
+        g = np.asarray(gains, dtype=np.float32)
+        segment_gain = g[:, self.layout.segment_strip] if g.ndim == 2 else g
+        f = self.law.conductance_gain(stress, segment_gain)
+        return f.reshape(len(f), -1).astype(np.float64) @ self.layout.flat_weights.T
+
+    def readings_from_loads(self, loads: np.ndarray) -> np.ndarray:
+        """Noise-free readings (V) of channel ``loads`` (B, C), clipped to the ADC's range."""
+        c = self.config.readout
+        share = loads / self.layout.segments
+        series = self.readout.volts(self.config.piezo.strip_resistance_ohm * (1.0 - share))
+        linear = c.offset_v + c.amplifier_gain * c.supply_v / 4.0 * share
+        return self.adc(np.where(self.layout.linear, linear, series), quantise=False)
 
     def digitise(self, clean: np.ndarray, rng: np.random.Generator | None, noise: bool = True) -> np.ndarray:
         """Add electrical noise and quantise (``noise=False``: the ideal readout)."""
@@ -360,11 +457,13 @@ class StripSensor:
     ) -> dict[str, np.ndarray]:
         """Readings and intersection map for the user's pressure ``field`` (kPa, (B, N*s, M*s)).
 
-        ``gains`` (B, N+M) default to 1 (a nominal device); ``noise=True`` needs ``rng``.
-        Returns ``readings`` (B, N+M) float32 V, ``pressure`` (B, N, M) float32 kPa and
-        ``readings_clean``.
+        ``gains`` (B, strips) default to 1 (a nominal device; N+M strips, plus the diagonal strips
+        of layout 'diagonal'); ``noise=True`` needs ``rng``. Returns ``readings`` (B, C) float32 V
+        (C = N+M for the orthogonal pair; ``synth.sensors.strip_layouts`` for the others),
+        ``pressure`` (B, N, M) float32 kPa and ``readings_clean``.
         """
         row, col = self.array.segment_stress(field)
+        diag = self.array.diagonal_stress(field) if self.array.diag_ops else None
         b = row.shape[0]
         if gains is None:
             gains = np.ones((b, self.n_strips), dtype=np.float32)
@@ -373,7 +472,7 @@ class StripSensor:
             raise InputError(
                 f"gains: expected positive finite values of shape ({b}, {self.n_strips}), got {gains.shape}"
             )
-        clean = self.clean_readings(row, col, gains).astype(np.float32)
+        clean = self.clean_readings(row, col, gains, diag).astype(np.float32)
         return {
             "readings": self.digitise(clean, rng, noise).astype(np.float32),
             "pressure": self.array.cell_pressure(field).astype(np.float32),
@@ -386,22 +485,28 @@ class StripSensor:
         c = self.config.readout
         sd_v = np.sqrt(c.noise_v**2 + c.lsb_v**2 / 12.0)
         step = max(sd_v, 1e-6)
-        base = np.full((1, self.n_strips), c.offset_v)
+        base = np.full((1, self.n_channels), c.offset_v)
         slope = (self.invert_readings(base + step) - self.invert_readings(base)) / step
         return np.asarray(np.abs(slope[0]) * sd_v)
 
     def invert_readings(self, readings: np.ndarray) -> np.ndarray:
-        """Per-strip load in segment units, ``L = sum over segments of f`` (B, N+M), assuming unit gains.
+        """Per-channel load in segment units, ``L = sum over segments of f`` (B, C), assuming unit
+        gains (for the orthogonal layout C = N + M: one load per strip).
 
         For a load on a single segment ``L`` is that segment's ``f``; for a uniform load over ``k``
         segments it is ``k f``. This is the "strip pressure integral" of the classical estimators.
+        A two-ended strip's end reads the sum of ``f`` weighted by the share of current that flows
+        to that end (``synth.sensors.strip_layouts``).
         """
         r0 = self.config.piezo.strip_resistance_ohm
         resistance = self.readout.resistance(readings)
-        segments = np.concatenate(
-            [np.full(self.n_rows, self.n_cols, np.float64), np.full(self.n_cols, self.n_rows, np.float64)]
-        )
-        return np.clip(1.0 - resistance / r0, 0.0, 1.0) * segments
+        segments = self.layout.segments
+        loads = np.clip(1.0 - resistance / r0, 0.0, 1.0) * segments
+        if self.layout.linear.any():
+            c = self.config.readout
+            share = (np.asarray(readings, dtype=np.float64) - c.offset_v) / (c.amplifier_gain * c.supply_v / 4.0)
+            loads = np.where(self.layout.linear, np.clip(share, 0.0, None) * segments, loads)
+        return loads
 
 
 # -------------------------------------------------------------------------------------------------
@@ -446,9 +551,14 @@ class StripSimulator:
     def output_specs(self) -> dict[str, ArraySpec]:
         g = self.config.geometry
         n, m, k = g.n_rows, g.n_cols, self.k_max
+        layout = StripLayout(g)
+        channels, strips = layout.n_channels, layout.n_strips
         specs: dict[str, ArraySpec] = {}
         if self.scene.wants("readings"):
-            specs["readings"] = ArraySpec((n + m,), "float32", OUTPUTS["readings"])
+            what = (
+                OUTPUTS["readings"] if layout.orthogonal else f"readings (V) of layout {layout.name!r}: ({channels},)"
+            )
+            specs["readings"] = ArraySpec((channels,), "float32", what)
         if self.scene.wants("pressure"):
             specs["pressure"] = ArraySpec((n, m), "float32", OUTPUTS["pressure"])
         if self.scene.wants("field"):
@@ -473,10 +583,10 @@ class StripSimulator:
                     if self.shaped
                     else {}
                 ),
-                latent_strip_gain=ArraySpec((n + m,), "float32", "per-strip sensitivity gain"),
+                latent_strip_gain=ArraySpec((strips,), "float32", "per-strip sensitivity gain"),
             )
             if self.scene.wants("readings"):
-                specs["readings_clean"] = ArraySpec((n + m,), "float32", "noise-free, unquantised readings (V)")
+                specs["readings_clean"] = ArraySpec((channels,), "float32", "noise-free, unquantised readings (V)")
         return specs
 
     # -- drawing -------------------------------------------------------------------------------
@@ -533,9 +643,9 @@ class StripSimulator:
 
     def draw_gains(self, n: int, rng: np.random.Generator) -> np.ndarray:
         spread = self.config.piezo.gain_spread
-        g = self.config.geometry
         # clipped so that a 6-sigma draw cannot make a strip's sensitivity vanish or flip sign
-        return np.clip(1.0 + spread * rng.standard_normal((n, g.n_rows + g.n_cols)), 0.5, 1.5).astype(np.float32)
+        strips = StripLayout(self.config.geometry).n_strips  # not self.sensor: no mechanics for latent-only
+        return np.clip(1.0 + spread * rng.standard_normal((n, strips)), 0.5, 1.5).astype(np.float32)
 
     def windows(self, contacts: dict[str, np.ndarray]) -> list[tuple[tuple[np.ndarray, np.ndarray], Windows]]:
         """Rasterised windows per stimulus kind, with the (frame, slot) of each window."""
@@ -578,20 +688,24 @@ class StripSimulator:
             np.zeros(shape, np.float32),
             np.zeros(shape, np.float32),
         )
+        layout = StripLayout(g)
+        n_diag = len(layout.layers) - 2 if want_readings else 0
+        diag = np.zeros((n, n_diag, g.n_rows, g.n_cols), np.float32) if n_diag else None
         for slots, win in windows:
             parts = self.sensor.array.window_products(win, stress=want_readings, cells=want_pressure)
             # a frame holds at most one window per slot: plain fancy-index adds, no np.add.at needed
             for slot in np.unique(slots[1]):
                 sel = slots[1] == slot
                 frames = slots[0][sel]
-                for key, target in (("row", row), ("col", col), ("cells", pressure)):
-                    if key in parts:
+                for key, target in (("row", row), ("col", col), ("cells", pressure), ("diag", diag)):
+                    if key in parts and target is not None:
                         target[frames] += parts[key][sel]
         if want_readings:
             # frames without contact keep zero stress: their readings are the baseline plus noise;
             # the separable kernel's truncation can leave -1e-6-sized stress far from any load
             row, col = np.maximum(row, 0.0), np.maximum(col, 0.0)
-            clean = self.sensor.clean_readings(row, col, gains).astype(np.float32)
+            diag = None if diag is None else np.maximum(diag, 0.0)
+            clean = self.sensor.clean_readings(row, col, gains, diag).astype(np.float32)
             out["readings"] = self.sensor.digitise(clean, rng, self.scene.noise).astype(np.float32)
         if want_pressure:
             out["pressure"] = np.maximum(pressure, 0.0)

@@ -35,8 +35,23 @@ class StripGeometry:
     pitch_mm: float = param(2.5, lo=0.1, hi=50.0, unit="mm", doc="centre-to-centre strip spacing")
     strip_width_mm: float = param(2.0, lo=0.01, hi=50.0, unit="mm", doc="conductive width of a strip")
     samples_per_pitch: int = param(4, lo=4, hi=32, doc="fine-lattice samples per pitch (pressure field)")
+    layout: Literal["orthogonal", "diagonal", "two_ended", "taps"] = param(
+        "orthogonal",
+        omit_default=True,
+        doc="strips and readout (synth.sensors.strip_layouts): the orthogonal pair; + diagonal strips; "
+        "rows and columns read at both ends; rows and columns read between taps",
+    )
+    diagonals: Literal["+45", "-45", "both"] = param(
+        "+45", omit_default=True, doc="diagonal layers of layout 'diagonal', each one strip thickness deeper"
+    )
+    taps: int = param(2, lo=2, hi=64, omit_default=True, doc="sections (readings) per strip of layout 'taps'")
 
     def __post_init__(self) -> None:
+        if self.layout == "taps" and self.taps > min(self.n_rows, self.n_cols):
+            raise ConfigError(
+                f"geometry.taps: {self.taps} sections per strip, but a strip has only "
+                f"{min(self.n_rows, self.n_cols)} segments"
+            )
         if self.strip_width_mm > self.pitch_mm:
             raise ConfigError(
                 f"geometry.strip_width_mm: {self.strip_width_mm} mm is wider than the pitch ({self.pitch_mm} mm)"
@@ -233,6 +248,12 @@ class StripsConfig:
     piezo: Piezoresistive = param(Piezoresistive())
     readout: StripReadout = param(StripReadout())
     stimuli: StripStimuli = param(StripStimuli())
+
+    def wire_count(self) -> int:
+        """Signal wires to the readout: one per reading (a strip end, a tap's section)."""
+        from synth.sensors.strip_layouts import StripLayout
+
+        return StripLayout(self.geometry).n_channels
 
     def __post_init__(self) -> None:
         g = self.geometry

@@ -17,6 +17,9 @@ EXAMPLES = """\
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
   tactile-learn train --task thermal --scene thermal --stream 160000 --val data/th-val --out runs/th-stream
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
+  # data-parallel on N processes (DDP, gloo, CPU): each rank trains on its share of every batch, rank 0 writes the run
+  torchrun --nproc-per-node 2 -m tactile_learn.cli train --task strips --data data/s16-train --val data/s16-val \
+      --out runs/s16-ddp --threads 1
 --scene/--stream: every epoch simulates --stream fresh samples (seed --stream-seed; epoch e takes the shards
 after epoch e-1's), shuffled like a dataset; --repeat reuses the first epoch's (then training equals training on
 `generate --n N --seed S --shard-size B`, same weights).
@@ -82,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         fresh=not args.repeat,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
-    if not args.quiet:
+    if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports
         summary = {k: result[k] for k in ("task", "size", "epochs_run", "best_epoch", "train_seconds", "val_metrics")}
         print(json_dumps(summary))
     return 0

@@ -47,6 +47,10 @@ def input_stats(readings: np.ndarray, pressure: np.ndarray, scene: Scene) -> dic
     loads = sensor.invert_readings(readings.astype(np.float64))
     load_scale = float(np.sqrt(np.mean(loads**2)) + 1e-6)
     pressure_scale = float(np.sqrt(np.mean(pressure.astype(np.float64) ** 2)) + 1e-6)
+    if not sensor.layout.orthogonal:  # any other layout: the layout network (strips_layout)
+        from tactile_learn.nets.strips_layout import ARCH
+
+        return {"load_scale": load_scale, "pressure_scale_kpa": pressure_scale, "arch": ARCH}
     return {
         "load_scale": load_scale,
         "pressure_scale_kpa": pressure_scale,
@@ -119,6 +123,17 @@ def _encoder(channels: int) -> nn.Sequential:
     )
 
 
+def context_mlp(inputs: int, width: int, out: int) -> nn.Sequential:
+    """The global context: an MLP over every strip's (or channel's) load at once."""
+    return nn.Sequential(
+        nn.Linear(inputs, width),
+        nn.ReLU(),
+        nn.Linear(width, width),
+        nn.ReLU(),
+        nn.Linear(width, out),
+    )
+
+
 class StripNet(nn.Module):
     """Readings -> map, with crossing features built by broadcast sums (cheap: no N x M convolutions
     before the pair stage, and no 3 x 3 convolutions at all)."""
@@ -134,13 +149,7 @@ class StripNet(nn.Module):
         self.row_encoder = _encoder(enc)
         self.col_encoder = _encoder(enc)
         # global context: every strip's load at once (magnitudes decide which rows pair with which columns)
-        self.context = nn.Sequential(
-            nn.Linear(g.n_rows + g.n_cols, context),
-            nn.ReLU(),
-            nn.Linear(context, context),
-            nn.ReLU(),
-            nn.Linear(context, hidden),
-        )
+        self.context = context_mlp(g.n_rows + g.n_cols, context, hidden)
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.product_proj = nn.Conv2d(1, hidden, 1, bias=False)
@@ -171,6 +180,13 @@ def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> nn.Module
     shape library) when the statistics say so, else this module's first architecture (models
     shipped before it). ``v1_small`` / ``v1_large`` train the first architecture on purpose (the
     two-sphere specialist's recipe)."""
+    if stats.get("arch", 1) == 3:
+        from tactile_learn.nets.strips_layout import LayoutStripNet
+
+        size = size.removeprefix("v1_")
+        if size not in SIZES:
+            raise ValueError(f"size {size!r} is not one of {', '.join(SIZES)} (a layout network)")
+        return LayoutStripNet(scene, stats, size)
     if size.startswith("v1_"):
         size = size.removeprefix("v1_")
     elif stats.get("arch", 1) == 2:

@@ -106,6 +106,10 @@ class Task(ABC):
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         """Per-frame shape of ``predict``'s input for ``scene``."""
 
+    def input_layout(self, scene: Scene) -> dict[str, Any]:
+        """What each input entry is, for the model card's ``inputs`` (empty: see the task's docs)."""
+        return {}
+
     def output_labels(self, scene: Scene) -> tuple[str, ...]:
         """Names of ``predict``'s output classes for ``scene`` (empty for regression tasks): a model
         applied to another scene of the same sensor must predict the same classes in the same order."""

@@ -19,7 +19,16 @@ from tactile_learn.validation import as_batch
 if TYPE_CHECKING:
     import torch
 
-__all__ = ["CHECK_OUTPUTS", "StripsTask", "frame_groups"]
+__all__ = [
+    "CHECK_OUTPUTS",
+    "StripsTask",
+    "crossing_pressure",
+    "distinct_crossings",
+    "frame_groups",
+    "ghost_energy",
+    "ghost_to_real",
+    "pairing",
+]
 
 #: the exported graph's further outputs, per frame: the readings residual of its map (in noise
 #: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
@@ -61,6 +70,37 @@ def frame_groups(extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, np.
     return groups
 
 
+def crossing_pressure(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame, the estimated pressure summed on the two real crossings of contacts 1 and 2
+    (row 1, column 1) + (row 2, column 2), and on the two ghost crossings (row 1, column 2) +
+    (row 2, column 1)."""
+    n, m = pred.shape[1:]
+    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
+    rows = np.clip((xy[..., 1] // pitch_mm).astype(int), 0, n - 1)
+    cols = np.clip((xy[..., 0] // pitch_mm).astype(int), 0, m - 1)
+    b = np.arange(len(pred))
+    real = pred[b, rows[:, 0], cols[:, 0]] + pred[b, rows[:, 1], cols[:, 1]]
+    ghost = pred[b, rows[:, 0], cols[:, 1]] + pred[b, rows[:, 1], cols[:, 0]]
+    return real, ghost
+
+
+def ghost_to_real(real: np.ndarray, ghost: np.ndarray) -> np.ndarray:
+    return np.asarray((ghost + 1e-9) / (real + 1e-9))  # 1e-9 kPa: an empty estimate counts as a spread, not 0/0
+
+
+def ghost_energy(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
+    """Per frame: the share of the map's total (its summed pressure) on the two ghost crossings."""
+    _, ghost = crossing_pressure(pred, extra, pitch_mm)
+    total = pred.reshape(len(pred), -1).sum(axis=1).astype(np.float64)
+    # an empty map holds no ghost load: 0, not 0/0
+    return np.divide(ghost, total, out=np.zeros_like(total), where=total > 0)
+
+
+def distinct_crossings(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
+    """Frames whose first two contacts are more than a pitch apart in x and y (two ghost crossings)."""
+    return _apart(extra, pitch_mm)
+
+
 def pairing(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> dict[str, float]:
     """How an estimate pairs the rows and columns of two contacts on distinct rows and columns.
 
@@ -70,14 +110,8 @@ def pairing(pred: np.ndarray, extra: dict[str, np.ndarray], pitch_mm: float) -> 
     mass on both pairings, the honest answer when the readings cannot tell), ``confident_wrong``
     (ratio > 2: a pairing the readings do not support, invented).
     """
-    n, m = pred.shape[1:]
-    xy = extra["latent_xy_mm"][:, :2].astype(np.float64)
-    rows = np.clip((xy[..., 1] // pitch_mm).astype(int), 0, n - 1)
-    cols = np.clip((xy[..., 0] // pitch_mm).astype(int), 0, m - 1)
-    b = np.arange(len(pred))
-    real = pred[b, rows[:, 0], cols[:, 0]] + pred[b, rows[:, 1], cols[:, 1]]
-    ghost = pred[b, rows[:, 0], cols[:, 1]] + pred[b, rows[:, 1], cols[:, 0]]
-    ratio = (ghost + 1e-9) / (real + 1e-9)  # 1e-9 kPa: an empty estimate counts as a spread, not 0/0
+    real, ghost = crossing_pressure(pred, extra, pitch_mm)
+    ratio = ghost_to_real(real, ghost)
     return {
         "ghost_to_real_median": float(np.median(ratio)) if len(ratio) else float("nan"),
         "confident_right": float(np.mean(ratio < 0.5)) if len(ratio) else float("nan"),
@@ -97,8 +131,20 @@ class StripsTask(Task):
     default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
-        g = scene.sensor.geometry
-        return (g.n_rows + g.n_cols,)
+        """(C,): one reading per channel of the scene's layout (N + M for the orthogonal pair;
+        ``synth.sensors.strip_layouts`` documents each layout's order)."""
+        return (scene.sensor.wire_count(),)
+
+    def input_layout(self, scene: Scene) -> dict[str, Any]:
+        """The readings order of the scene's layout: each group of channels, its first index and count."""
+        from synth.sensors.strip_layouts import StripLayout
+
+        layout = StripLayout(scene.sensor.geometry)
+        return {
+            "layout": layout.name,
+            "order": [{"group": g.name, "first": g.start, "count": g.stop - g.start} for g in layout.groups],
+            "documented_in": "synth.sensors.strip_layouts",
+        }
 
     def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
         """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
@@ -164,10 +210,11 @@ class StripsTask(Task):
                 raise DataError(f"{path}: needs arrays 'readings' (B, N+M) and 'pressure' (B, N, M); missing {key!r}")
         g = scene.sensor.geometry
         readings, pressure = arrays["readings"], arrays["pressure"]
-        if readings.ndim != 2 or readings.shape[1] != g.n_rows + g.n_cols:
+        if readings.ndim != 2 or readings.shape[1] != self.input_shape(scene)[0]:
             raise DataError(
                 f"{path}: readings have shape {readings.shape}, scene {scene.name!r} has "
-                f"{g.n_rows}+{g.n_cols} strips (pass --scene for another sensor)"
+                f"{self.input_shape(scene)[0]} readings ({g.n_rows}+{g.n_cols} strips, layout {g.layout!r}; "
+                "pass --scene for another sensor)"
             )
         if pressure.shape != (len(readings), g.n_rows, g.n_cols):
             raise DataError(
@@ -236,6 +283,8 @@ class StripsTask(Task):
         pressure = arrays["pressure"].astype(np.float32, copy=True)
         flip_y = rng.random(len(readings)) < 0.5
         flip_x = rng.random(len(readings)) < 0.5
+        if g.layout != "orthogonal":
+            return _mirrored(readings, pressure, flip_y, flip_x, scene), {"pressure": pressure}
         rows, cols = readings[:, : g.n_rows], readings[:, g.n_rows :]
         rows[flip_y] = rows[flip_y, ::-1]
         cols[flip_x] = cols[flip_x, ::-1]
@@ -275,6 +324,28 @@ class StripsTask(Task):
         from tactile_learn.nets.strips import strip_loss
 
         return strip_loss(output, targets["pressure"])
+
+
+def _mirrored(
+    readings: np.ndarray, pressure: np.ndarray, flip_y: np.ndarray, flip_x: np.ndarray, scene: Scene
+) -> np.ndarray:
+    """Mirror frames of any layout in place (maps) and by channel permutation (readings); a mirror
+    that is no symmetry of the layout (a +45 diagonal layer alone under one flip) is replaced by the
+    half-turn (both flips), which is one for every layout."""
+    from synth.sensors.strip_layouts import StripLayout
+
+    layout = StripLayout(scene.sensor.geometry)
+    perms = {(fy, fx): layout.flip_permutation(fy, fx) for fy in (False, True) for fx in (False, True)}
+    for (fy, fx), perm in perms.items():
+        sel = (flip_y == fy) & (flip_x == fx)
+        if not (fy or fx) or not sel.any():
+            continue
+        if perm is None:  # the half-turn maps every layout onto itself
+            perm, fy, fx = perms[(True, True)], True, True
+        if perm is not None:
+            readings[sel] = readings[sel][:, perm]
+            pressure[sel] = pressure[sel][:, :: -1 if fy else 1, :: -1 if fx else 1]
+    return readings
 
 
 def _checked_model(estimator: Estimator) -> Any:

@@ -12,7 +12,9 @@
 3. Turn ``f_ij`` back into pressure through the piezoresistive law (unit gain assumed).
 
 Ghosts are inherent: two contacts light two rows and two columns, and the product lights all four
-crossings. The depth blur of the cover is not undone (see ``projection``).
+crossings. The depth blur of the cover is not undone (see ``projection``). Other layouts
+(``synth.sensors.strip_layouts``) enter through their row and column totals only; ``projection``
+uses every channel.
 """
 
 from __future__ import annotations
@@ -26,14 +28,22 @@ from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
 
-__all__ = ["IntersectionEstimator", "strip_loads"]
+__all__ = ["IntersectionEstimator", "channel_loads", "strip_loads"]
+
+
+def channel_loads(sensor: StripSensor, readings: np.ndarray, noise_floor: float) -> np.ndarray:
+    """Every channel's load (B, C), float64, with loads under the noise floor zeroed."""
+    loads = sensor.invert_readings(readings)
+    return np.where(loads > noise_floor * sensor.load_noise()[None, :], loads, 0.0)
 
 
 def strip_loads(sensor: StripSensor, readings: np.ndarray, noise_floor: float) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column loads (B, N), (B, M), float64, with loads under the noise floor zeroed."""
-    loads = sensor.invert_readings(readings)
-    loads = np.where(loads > noise_floor * sensor.load_noise()[None, :], loads, 0.0)
-    return loads[:, : sensor.n_rows], loads[:, sensor.n_rows :]
+    """Row and column loads (B, N), (B, M), float64, with loads under the noise floor zeroed (any
+    layout: a two-ended strip's ends, a tapped strip's sections summed; diagonal strips left out)."""
+    loads = channel_loads(sensor, readings, noise_floor)
+    if sensor.layout.orthogonal:
+        return loads[:, : sensor.n_rows], loads[:, sensor.n_rows :]
+    return sensor.layout.row_col_loads(loads)
 
 
 class IntersectionEstimator(Estimator):

@@ -1,17 +1,21 @@
-"""Projection-consistent refinement of the intersection estimate.
+"""Projection-consistent refinement of the intersection estimate, over every channel of the layout.
 
-The intersection estimate ignores how the cover spreads load between neighbouring strips and
-does not reproduce the readings it came from. This estimator looks for a non-negative map ``x`` of
-cell pressures whose *forward model* - the same cover kernel and piezoresistive law the simulator
-uses, with unit gains - reproduces the measured strip loads ``L``:
+The intersection estimate ignores how the cover spreads load between neighbouring strips, uses
+only the row and column totals, and does not reproduce the readings it came from. This estimator
+looks for a non-negative map ``x`` of cell pressures whose *forward model* - the same cover kernel
+per layer and piezoresistive law the simulator uses, with unit gains, and the layout's channel
+weights (``synth.sensors.strip_layouts``: whole strips, diagonal strips, two-ended strips' ends,
+tapped sections) - reproduces every measured channel load ``L``:
 
     minimise  || L_model(x) - L ||^2  over  x >= 0,   starting from the intersection estimate.
 
 Iterations are multiplicative (ISRA, the image-space reconstruction algorithm for non-negative
 inverse problems): ``x <- x * (J^T L) / (J^T L_model(x))`` with ``J = dL_model/dx >= 0``. They keep
 ``x`` non-negative, never light a cell that the starting estimate left dark, and sharpen the
-blurred start towards what the readings allow. The problem is underdetermined (N + M equations,
-N M unknowns), so the start acts as the prior and the stopping rule as the regulariser.
+blurred start towards what the readings allow: with a diagonal layer or a two-ended readout the
+channels that see a ghost crossing but no real contact pull it down. The problem is
+underdetermined for the orthogonal pair (N + M equations, N M unknowns), so the start acts as the
+prior and the stopping rule as the regulariser.
 
 Stopping rule (per frame): the *discrepancy principle* - stop as soon as the RMS misfit, in units
 of the readout noise carried to the loads, is at most ``tau``; fitting the readings more closely
@@ -32,7 +36,7 @@ import numpy as np
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.estimators.classical.intersection import IntersectionEstimator, strip_loads
+from tactile_learn.estimators.classical.intersection import IntersectionEstimator, channel_loads
 
 __all__ = ["ProjectionEstimator"]
 
@@ -58,47 +62,41 @@ class ProjectionEstimator(Estimator):
     @cached_property
     def model_(self) -> dict[str, Any]:
         sensor = StripSensor(self.scene.sensor)
-        k_row, k_col = sensor.array.cell_stress_operators()
+        ops = sensor.array.layer_cell_operators()
         return {
             "sensor": sensor,
-            "k_row": k_row.T.astype(np.float32).copy(),  # right-multiplied: (B, NM) @ (NM, NM)
-            "k_col": k_col.T.astype(np.float32).copy(),
-            "k_row_t": k_row.astype(np.float32).copy(),
-            "k_col_t": k_col.astype(np.float32).copy(),
+            "k": [op.T.astype(np.float32).copy() for op in ops],  # right-multiplied: (B, NM) @ (NM, NM)
+            "k_t": [op.astype(np.float32).copy() for op in ops],
+            "w": sensor.layout.flat_weights.astype(np.float32),  # (C, L*NM)
             "noise": sensor.load_noise().astype(np.float64),
             "start": IntersectionEstimator(self.scene, noise_floor=self.noise_floor),
         }
 
-    def _loads(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Model loads (B, N), (B, M) of cell pressures ``x`` (B, N*M) and the derivative of each
-        segment's conductance share (B, N, M) per layer."""
+    def _loads(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Model channel loads (B, C) of cell pressures ``x`` (B, N*M) and the derivative of each
+        segment's conductance share (B, L*N*M)."""
         m = self.model_
-        sensor: StripSensor = m["sensor"]
-        n, mm = sensor.n_rows, sensor.n_cols
-        law = sensor.law
-        s_row = np.maximum(x @ m["k_row"], 0.0).reshape(-1, n, mm)
-        s_col = np.maximum(x @ m["k_col"], 0.0).reshape(-1, n, mm)
-        f_row, f_col = law.conductance_gain(s_row), law.conductance_gain(s_col)
+        law = m["sensor"].law
+        stress = np.concatenate([np.maximum(x @ k, 0.0) for k in m["k"]], axis=1)
+        f = law.conductance_gain(stress)
         # df/dp = n / p0 * (1 + p/p0)^(-n-1) = n / p0 * (1 - f)^((n+1)/n)
         power = (law.exponent + 1.0) / law.exponent
-        d_row = law.exponent / law.p0_kpa * (1.0 - f_row) ** power
-        d_col = law.exponent / law.p0_kpa * (1.0 - f_col) ** power
-        return f_row.sum(axis=2), f_col.sum(axis=1), d_row, d_col
+        d = law.exponent / law.p0_kpa * (1.0 - f) ** power
+        return f @ m["w"].T, d
 
-    def _jt(self, v_row: np.ndarray, v_col: np.ndarray, d_row: np.ndarray, d_col: np.ndarray) -> np.ndarray:
-        """``J^T [v_row; v_col]`` as a flat (B, N*M) map."""
+    def _jt(self, v: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """``J^T v`` for channel values ``v`` (B, C), as a flat (B, N*M) map."""
         m = self.model_
-        b = len(v_row)
-        g_row = (v_row[:, :, None] * d_row).reshape(b, -1)
-        g_col = (v_col[:, None, :] * d_col).reshape(b, -1)
-        return g_row @ m["k_row_t"] + g_col @ m["k_col_t"]
+        back = (v.astype(np.float32) @ m["w"]) * d  # (B, L*NM)
+        cells = len(m["k_t"][0])
+        return sum(back[:, k * cells : (k + 1) * cells] @ kt for k, kt in enumerate(m["k_t"]))
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         m = self.model_
         sensor: StripSensor = m["sensor"]
         start = m["start"].predict(X)  # validates X
         b, n, mm = start.shape
-        rows, cols = strip_loads(sensor, np.asarray(X, dtype=np.float32), self.noise_floor)
+        measured = channel_loads(sensor, np.asarray(X, dtype=np.float32), self.noise_floor)
         noise = m["noise"]
         x = start.reshape(b, n * mm).astype(np.float64)
         active = np.flatnonzero(x.max(axis=1) > 0)  # all-zero frames are already consistent
@@ -106,11 +104,11 @@ class ProjectionEstimator(Estimator):
             if active.size == 0:
                 break
             xa = x[active]
-            lr, lc, d_row, d_col = self._loads(xa.astype(np.float32))
-            misfit = np.concatenate([lr - rows[active], lc - cols[active]], axis=1) / noise[None, :]
+            model, d = self._loads(xa.astype(np.float32))
+            misfit = (model - measured[active]) / noise[None, :]
             rms = np.sqrt(np.mean(misfit**2, axis=1))
-            numerator = self._jt(rows[active], cols[active], d_row, d_col)
-            denominator = self._jt(lr, lc, d_row, d_col)
+            numerator = self._jt(measured[active], d)
+            denominator = self._jt(model, d)
             # 0/0 where a cell has no sensitivity left: keep its value
             ratio = np.divide(numerator, denominator, out=np.ones_like(numerator), where=denominator > 1e-30)
             updated = xa * ratio
