@@ -363,15 +363,19 @@ class TriangulationEstimator(Estimator):
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks.fsr import FsrTask
+        from tactile_learn.tasks import get_task
 
-        readings = FsrTask().check_inputs(X, self.scene)
+        return self.predict_checked(get_task("fsr").check_inputs(X, self.scene))
+
+    def predict_checked(self, readings: np.ndarray) -> np.ndarray:
+        from tactile_learn.tasks import get_task
+
         if not hasattr(self, "model_"):
             self.fit()
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
         out, _ = triangulate(loads, config, self.model_, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return FsrTask().finish_prediction(readings, out.astype(np.float32), self.scene)
+        return get_task("fsr").finish_prediction(readings, out.astype(np.float32), self.scene)
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):
