@@ -160,6 +160,8 @@ class OnePressCheck:
         good estimator's genuine presses mostly pass at the first stage: one forward model."""
         out = np.zeros(len(estimate), dtype=np.float32)
         detected = estimate[:, 3] > 0.5
+        if not detected.any():  # nothing to check (a stream's frames without contact)
+            return out
         # outside the triangles (p_inside <= 0.5) position and force are extrapolations already:
         # such frames are not checked (0.5, undecided), which also keeps the check cheap
         out[detected & (estimate[:, 4] <= 0.5)] = 0.5

@@ -234,8 +234,10 @@ class FsrTask(Task):
             return prediction
         from tactile_learn.fsr_check import one_press_check
 
-        one = one_press_check(scene).p_one_press(inputs, prediction) if len(prediction) else np.zeros(0, np.float32)
-        return np.column_stack([prediction, one]).astype(np.float32)
+        out = np.empty((len(prediction), len(COLUMNS)), dtype=np.float32)
+        out[:, :-1] = prediction
+        out[:, -1] = one_press_check(scene).p_one_press(inputs, prediction) if len(prediction) else 0.0
+        return out
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.triangulation import (
