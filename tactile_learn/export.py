@@ -32,6 +32,7 @@ from synth.errors import ModelError
 from synth.io import atomic_open, atomic_write_json, sha256_file
 from synth.scene import Scene, parse_scene
 from tactile_learn.checkpoints import build_net, load_weights, save_torch
+from tactile_learn.idle import IDLE_KEYS, measure_idle_floor
 from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
 from tactile_learn.tasks import get_task
 
@@ -175,6 +176,8 @@ def export(
     atomic_write_json(card_path(out), card)
     calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
     extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
+    if task.name in IDLE_KEYS:  # the sensor's noise floor at rest: the stream's idle gate
+        extras["idle"] = measure_idle_floor(scene)
     if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames
         card.update(extras)
         atomic_write_json(card_path(out), card)

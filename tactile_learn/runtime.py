@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from synth.errors import ConfigError, ModelError
 from synth.io import sha256_file
 from synth.scene import Scene, parse_scene
 from tactile_learn.estimators.base import Estimator
+
+if TYPE_CHECKING:
+    from tactile_learn.tasks.base import Task
 
 __all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "card_path", "read_card"]
 
@@ -179,13 +182,20 @@ class OnnxEstimator(Estimator):
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        session = self.session_
-        x = self._checked(X)
+        self.session_  # noqa: B018 - a corrupt or mismatched model fails before the input is looked at
+        return self.predict_checked(self._checked(X))
+
+    def predict_checked(self, x: np.ndarray) -> np.ndarray:
+        run, output, input_name = self._run_first_
         if len(x) == 0:
             return self._finish(x, np.zeros((0, *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32))
-        # only the first output: a graph's further outputs (e.g. a residual) are not needed for it
-        result = session.run([self.card_["outputs"][0]["name"]], {self.card_["inputs"][0]["name"]: x})[0]
-        return self._finish(x, np.asarray(result, dtype=np.float32))
+        return self._finish(x, np.asarray(run(output, {input_name: x})[0], dtype=np.float32))
+
+    @cached_property
+    def _run_first_(self) -> tuple[Any, list[str], str]:
+        """The session's ``run``, the first output's name (a graph's further outputs, e.g. a
+        residual, are not needed for ``predict``) and the input's name, looked up once."""
+        return self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"]
 
     def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every output of the graph by name (the first is what :meth:`predict` returns)."""
@@ -199,12 +209,14 @@ class OnnxEstimator(Estimator):
         out[names[0]] = self._finish(x, out[names[0]])
         return out
 
-    def _finish(self, x: np.ndarray, result: np.ndarray) -> np.ndarray:
+    @cached_property
+    def task_(self) -> Task:
         from tactile_learn.tasks import get_task
 
-        return get_task(self.task_name).finish_prediction(x, result, self.scene_)
+        return get_task(self.task_name)
+
+    def _finish(self, x: np.ndarray, result: np.ndarray) -> np.ndarray:
+        return self.task_.finish_prediction(x, result, self.scene_)
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks import get_task
-
-        return get_task(self.task_name).check_inputs(X, self.scene_)
+        return self.task_.check_inputs(X, self.scene_)

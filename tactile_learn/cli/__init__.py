@@ -25,6 +25,7 @@ SUBCOMMANDS = (
     "train",
     "export",
     "bench",
+    "run",
     "calibrate",
     "adapt",
     "scenes",

@@ -34,6 +34,12 @@ class Estimator:
     def predict(self, X: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
+    def predict_checked(self, x: np.ndarray) -> np.ndarray:
+        """``predict`` on a batch the task's ``check_inputs`` has already validated (float32, the
+        right shape, in range): the streaming fast path (:mod:`tactile_learn.frame_stream`) calls this.
+        Estimators whose ``predict`` validates its input override it to skip the second check."""
+        return self.predict(x)
+
     def get_params(self) -> dict[str, Any]:
         """The ``__init__`` parameters, as stored on the instance."""
         names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]

@@ -160,6 +160,19 @@ class Task(ABC):
         Tasks override it to add their own physical bounds (e.g. a saturated ADC)."""
         return as_batch(inputs, self.input_shape(scene), name=self.input_key)
 
+    def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
+        """``(low, high, low_strict)``: a float32 batch of the right shape whose values all satisfy
+        ``low <= x < high`` (``low < x`` where ``low_strict``) passes :meth:`check_inputs` unchanged,
+        so the streaming fast path may check it with two reductions (NaN fails both comparisons).
+        ``None`` (the default) where ``check_inputs`` does more than check (e.g. maps a calibrated
+        film's readings): the fast path then calls it."""
+        return None
+
+    def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
+        """What every method answers for ``n`` frames with nothing touching the sensor (the idle
+        gate of :mod:`tactile_learn.frame_stream` returns it without running the estimator)."""
+        raise NotImplementedError(f"task {self.name!r} has no empty prediction")
+
     def calibrate(self, source: str | Path, out: str | Path, scene: Scene) -> dict[str, Any]:
         """Fit the user's own sensor from labelled recordings in ``source``; write a scene TOML
         (usable by ``generate --scene``) to ``out``; return a summary for the CLI to print."""

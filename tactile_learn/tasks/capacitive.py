@@ -103,6 +103,13 @@ class CapacitiveTask(Task):
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
         return capacitive_input(inputs, capacitive_config(scene), "cell_load")
 
+    def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
+        # capacitive_input's cell_load check: finite, not below a tenth of the full scale under zero
+        return -0.1 * float(capacitive_config(scene).readout.full_scale_n), float("inf"), False
+
+    def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
+        return np.zeros((n, 2, *capacitive_config(scene).geometry.image_shape), dtype=np.float32)
+
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator
 

@@ -217,15 +217,27 @@ class FsrTask(Task):
             batch = to_nominal_film(batch, config, np.asarray(config.film.gains))
         return batch
 
+    def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
+        config: fsr.FsrConfig = scene.sensor
+        if config.film.gains is not None:  # check_inputs maps the film's readings: not a pure check
+            return None
+        return 0.0, float(fsr.Readout(config.readout).full_scale), False
+
+    def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
+        """All six columns 0: no contact (``p_one_press`` 0 too, as for every undetected frame)."""
+        return np.zeros((n, len(COLUMNS)), dtype=np.float32)
+
     def finish_prediction(self, inputs: np.ndarray, prediction: np.ndarray, scene: Scene) -> np.ndarray:
         """Append ``p_one_press`` (:class:`~tactile_learn.fsr_check.OnePressCheck`) to an estimate of
         the five other columns; an estimate that has it already is returned as it is."""
         if prediction.ndim != 2 or prediction.shape[1] != len(COLUMNS) - 1:
             return prediction
-        from tactile_learn.fsr_check import OnePressCheck
+        from tactile_learn.fsr_check import one_press_check
 
-        one = OnePressCheck(scene).p_one_press(inputs, prediction) if len(prediction) else np.zeros(0, np.float32)
-        return np.column_stack([prediction, one]).astype(np.float32)
+        out = np.empty((len(prediction), len(COLUMNS)), dtype=np.float32)
+        out[:, :-1] = prediction
+        out[:, -1] = one_press_check(scene).p_one_press(inputs, prediction) if len(prediction) else 0.0
+        return out
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.triangulation import (

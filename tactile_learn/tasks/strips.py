@@ -194,6 +194,13 @@ class StripsTask(Task):
             upper_name="the ADC's full scale",
         )
 
+    def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
+        return 0.0, float(scene.sensor.readout.full_scale_v), False
+
+    def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
+        g = scene.sensor.geometry
+        return np.zeros((n, g.n_rows, g.n_cols), dtype=np.float32)
+
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.intersection import IntersectionEstimator
         from tactile_learn.estimators.classical.projection import ProjectionEstimator

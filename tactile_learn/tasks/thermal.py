@@ -292,6 +292,10 @@ class ThermalTask(Task):
             raise InputError(f"readings: saturated reading at or below the ADC's bottom ({lo:g} degC) in frame {row}")
         return x
 
+    def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
+        lo, hi = _config(scene).readout.adc_range_c
+        return float(lo), float(hi), True  # strictly inside the ADC's range (check_inputs)
+
     def example_inputs(self, arrays: dict[str, np.ndarray], scene: Scene) -> np.ndarray:
         """Estimator inputs from simulated dataset arrays (``readings`` (B, P, R) and the latents):
         every pixel's window at 1 s of contact, (B * P, W). (The generic machinery's probe and

@@ -101,8 +101,10 @@ class _ContactImageEstimator(Estimator):
         raise NotImplementedError
 
     def predict(self, X: Any) -> np.ndarray:
+        return self.predict_checked(capacitive_input(X, self.scene.sensor, "cell_load"))
+
+    def predict_checked(self, loads: np.ndarray) -> np.ndarray:
         config: CapacitiveConfig = self.scene.sensor
-        loads = capacitive_input(X, config, "cell_load")
         if not len(loads):
             return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
         force = self._force(loads, config)

@@ -64,7 +64,9 @@ class IntersectionEstimator(Estimator):
     def predict(self, X: np.ndarray) -> np.ndarray:
         from tactile_learn.tasks import get_task
 
-        readings = get_task("strips").check_inputs(X, self.scene)
+        return self.predict_checked(get_task("strips").check_inputs(X, self.scene))
+
+    def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         rows, cols = strip_loads(self.sensor_, readings, self.noise_floor)
         if self.rule == "product":
             total = 0.5 * (rows.sum(axis=1) + cols.sum(axis=1))

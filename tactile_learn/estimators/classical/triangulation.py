@@ -274,6 +274,15 @@ def triangulate(
     inside_tol_mm: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Estimate (B, 5) from disc loads (B, 6), and the number of valid sensors used (B,)."""
+    contact = loads.max(axis=1, initial=0.0) >= min_load_n
+    if not contact.all():  # frames without a contact are all zeros (and no sensor is valid): not solved
+        out = np.zeros((len(loads), 5), dtype=np.float64)
+        n_valid = np.zeros(len(loads), dtype=np.int64)
+        if contact.any():
+            out[contact], n_valid[contact] = triangulate(
+                loads[contact], config, model, min_load_n, fallback_fraction, inside_tol_mm
+            )
+        return out, n_valid
     geometry = _geometry(config.layout)
     sol = solve_triangles(loads, geometry, model, min_load_n, fallback_fraction, inside_tol_mm)
     # winner: most valid sensors, then inside, then the largest summed load (the contact's own
@@ -283,13 +292,11 @@ def triangulate(
     best = np.argmax(score, axis=1)
     rows = np.arange(len(loads))
     n_valid = sol["n_valid"][rows, best]
-    contact = loads.max(axis=1, initial=0.0) >= min_load_n
     out = np.zeros((len(loads), 5), dtype=np.float64)
     out[:, 0:2] = sol["xy"][rows, best]
     out[:, 2] = sol["force"][rows, best]
-    out[:, 3] = contact
+    out[:, 3] = 1.0  # every frame here has a contact
     out[:, 4] = np.where(n_valid <= 1, 0.5, sol["inside"][rows, best].astype(np.float64))
-    out[~contact] = 0.0
     return out, n_valid
 
 
@@ -363,15 +370,19 @@ class TriangulationEstimator(Estimator):
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks.fsr import FsrTask
+        from tactile_learn.tasks import get_task
 
-        readings = FsrTask().check_inputs(X, self.scene)
+        return self.predict_checked(get_task("fsr").check_inputs(X, self.scene))
+
+    def predict_checked(self, readings: np.ndarray) -> np.ndarray:
+        from tactile_learn.tasks import get_task
+
         if not hasattr(self, "model_"):
             self.fit()
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
         out, _ = triangulate(loads, config, self.model_, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return FsrTask().finish_prediction(readings, out.astype(np.float32), self.scene)
+        return get_task("fsr").finish_prediction(readings, out.astype(np.float32), self.scene)
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):

@@ -1,0 +1,136 @@
+"""Streaming frames through an estimator: checks and set-up once per session, idle frames skipped.
+
+``predict`` of every estimator is safe for any input: it validates the batch (shape, dtype, NaN/inf,
+range) and looks up the task and the scene on every call. A sensor read frame by frame pays that
+on every frame. :class:`FrameStream` is the fast path for that case: it resolves the task, the
+scene, the input shape and the valid range once, checks each batch with two reductions (its
+minimum and maximum against the range: NaN and inf fail too) and calls the estimator's
+``predict_checked``. Anything unusual (another dtype or shape, a value out of range, a task whose
+check does more than check) goes through the task's full ``check_inputs``, so bad input gets the
+same clear :class:`~synth.errors.InputError` as ``predict`` gives.
+
+With ``gate=True`` (or an :class:`~tactile_learn.idle.IdleGate`) the stream also skips idle frames:
+frames within the sensor's noise floor at rest (the model card's ``idle`` entry; for a classical
+method, measured on its scene when the stream starts) get the task's empty
+result (no contact) without running the estimator; in a mixed batch only the active frames are
+sent to it, and their results are exactly what the estimator gives for them.
+
+    from tactile_learn.runtime import OnnxEstimator
+    from tactile_learn.frame_stream import FrameStream
+
+    stream = FrameStream(OnnxEstimator("models/strips16.onnx"), gate=True)
+    for frame in sensor:                     # (N+M,) readings, one at a time
+        pressure = stream.predict(frame[None])[0]
+    stream.skipped, stream.frames            # idle frames answered without the network
+
+``tactile-learn run`` applies the same object to a file of frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from synth.errors import ModelError
+from synth.scene import Scene
+from tactile_learn.estimators.base import Estimator
+from tactile_learn.idle import IdleGate, measure_idle_floor
+from tactile_learn.tasks import get_task
+
+__all__ = ["FrameStream", "card_gate"]
+
+
+def card_gate(estimator: Estimator, scene: Scene) -> IdleGate:
+    """The idle gate of ``estimator`` on ``scene``: a learned model's from its card's ``idle``
+    entry; a classical method's measured now on the scene (a second or so)."""
+    from tactile_learn.runtime import OnnxEstimator
+
+    model = getattr(estimator, "model", estimator)  # a checked strip model wraps its ONNX model
+    n_features = int(np.prod(get_task(scene.task).input_shape(scene)))
+    if not isinstance(model, OnnxEstimator):
+        return IdleGate.from_floor(measure_idle_floor(scene, n=4000), n_features, source=scene.name)
+    floor = model.card_.get("idle")
+    if floor is None:
+        raise ModelError(
+            f"{model.path}: the model card has no idle floor; add it with "
+            f"'python scripts/idle_floor.py {model.path}' (or re-export the model)"
+        )
+    return IdleGate.from_floor(floor, n_features, source=str(model.path))
+
+
+def _task_and_scene(estimator: Estimator) -> tuple[str, Scene]:
+    from tactile_learn.runtime import OnnxEstimator
+
+    if isinstance(estimator, OnnxEstimator):
+        return estimator.task_name, estimator.scene_
+    scene = getattr(estimator, "scene_", None) or getattr(estimator, "scene", None)
+    if not isinstance(scene, Scene):
+        raise ModelError(f"{type(estimator).__name__}: a stream needs an estimator with a scene")
+    return scene.task, scene
+
+
+class FrameStream:
+    """One estimator, fed batch after batch (often of one frame): see the module docstring.
+
+    ``frames`` and ``skipped`` count what went through and what the gate answered itself.
+    """
+
+    def __init__(self, estimator: Estimator, gate: bool | IdleGate = False) -> None:
+        self.estimator = estimator
+        task_name, self.scene = _task_and_scene(estimator)
+        self.task = get_task(task_name)
+        self.shape = tuple(self.task.input_shape(self.scene))
+        self.bounds = self.task.fast_bounds(self.scene)
+        self.gate: IdleGate | None = card_gate(estimator, self.scene) if gate is True else (gate or None)
+        compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, "predict_checked", estimator.predict)
+        self._compute = compute
+        self.frames = 0
+        self.skipped = 0
+
+    def check(self, frames: Any) -> np.ndarray:
+        """``frames`` as the validated float32 batch ``predict`` would see (or an InputError)."""
+        bounds = self.bounds
+        if (
+            bounds is not None
+            and type(frames) is np.ndarray
+            and frames.dtype == np.float32
+            and frames.shape[1:] == self.shape
+            and frames.ndim == len(self.shape) + 1
+            and frames.flags.c_contiguous
+            and len(frames)
+        ):
+            low, high, strict = bounds
+            lo, hi = frames.min(), frames.max()
+            if (lo > low if strict else lo >= low) and hi < high:
+                return frames
+        return self.task.check_inputs(frames, self.scene)  # the full check: its clear error, or a copy
+
+    def predict(self, frames: Any) -> np.ndarray:
+        """The estimator's prediction for ``frames`` (batch first); idle frames answered by the gate."""
+        x = self.check(frames)
+        n = len(x)
+        self.frames += n
+        if self.gate is None or not n:
+            return self._compute(x)
+        active = self.gate.active(x)
+        n_active = int(np.count_nonzero(active))
+        self.skipped += n - n_active
+        if n_active == n:
+            return self._compute(x)
+        out = self.task.empty_prediction(n, self.scene)
+        if n_active:
+            out[active] = self._compute(x[active])
+        return out
+
+    def run(self, frames: Any, batch: int = 1024) -> np.ndarray:
+        """Predictions for a long array of frames, ``batch`` frames per call (a file of frames)."""
+        x = self.check(frames)
+        if len(x) <= batch:
+            return self.predict(x)
+        return np.concatenate([self.predict(x[i : i + batch]) for i in range(0, len(x), batch)])
+
+    @property
+    def skipped_share(self) -> float:
+        return self.skipped / self.frames if self.frames else 0.0
