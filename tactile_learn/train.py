@@ -22,7 +22,6 @@ import numpy as np
 import torch
 
 from synth import __version__
-from synth.dataset import Dataset
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
 from tactile_learn.checkpoints import MODEL, build_net, load_torch, load_weights, save_torch
@@ -30,6 +29,7 @@ from tactile_learn.progress import progress_bar
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.torch_estimator import TorchEstimator
+from tactile_learn.training_sets import TrainingSet
 
 __all__ = ["TrainConfig", "train"]
 
@@ -39,7 +39,7 @@ CHECKPOINT = "checkpoint.pt"
 @dataclass(frozen=True)
 class TrainConfig:
     task: str
-    data: str
+    data: str | tuple[str, ...]  # a dataset folder, or several of one sensor read as one training set
     out: str
     val: str | None = None
     size: str = ""
@@ -67,7 +67,7 @@ class TrainConfig:
             raise ConfigError("--epochs, --seed, --threads and --max-batches must be non-negative")
 
 
-def _val_data(config: TrainConfig, train_set: Dataset) -> EvalData:
+def _val_data(config: TrainConfig, train_set: TrainingSet) -> EvalData:
     task = get_task(config.task)
     if config.val:
         # data without a scene of its own (recordings, an .npz) is read with the training scene
@@ -114,15 +114,16 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     out = Path(config.out)
     if config.threads:
         torch.set_num_threads(config.threads)
-    train_set = Dataset(config.data)
+    folders = (config.data,) if isinstance(config.data, str) else tuple(config.data)
+    train_set = TrainingSet(folders, task.same_sensor)
     scene = train_set.scene
     if scene.task != config.task:
-        raise DataError(f"{config.data}: dataset is for task {scene.task!r}, not {config.task!r}")
+        raise DataError(f"{folders[0]}: dataset is for task {scene.task!r}, not {config.task!r}")
     keys = list(task.train_keys_for(scene))
     missing = [k for k in keys if k not in train_set.keys]
     if missing:
         raise DataError(
-            f"{config.data}: training needs arrays {', '.join(missing)} (generate with the default outputs)"
+            f"{', '.join(folders)}: training needs arrays {', '.join(missing)} (generate with the default outputs)"
         )
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
@@ -144,7 +145,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
     if batches_per_epoch < 1:
-        raise DataError(f"{config.data}: fewer samples than one batch of {config.batch_size}")
+        raise DataError(f"{', '.join(folders)}: fewer samples than one batch of {config.batch_size}")
     scheduler = torch.optim.lr_scheduler.OneCycleLR(
         optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
     )
@@ -240,7 +241,11 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
         "size": size,
         "scene": scene.name,
         "scene_digest": scene.digest,
-        "train_data": {"path": str(config.data), "seed": train_set.seed, "n": len(train_set)},
+        "train_data": {
+            "path": folders[0] if len(folders) == 1 else list(folders),
+            "seed": train_set.seeds[0] if len(folders) == 1 else train_set.seeds,
+            "n": len(train_set),
+        },
         "val_data": {"path": str(config.val), "n": len(val)},
         "epochs_run": state["epoch"],
         "best_epoch": state["best_epoch"],

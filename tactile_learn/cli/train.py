@@ -16,12 +16,18 @@ EXAMPLES = """\
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small --resume
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
+  tactile-learn train --task strips --data data/mixed-train data/s16-train --val data/mixed-val --out runs/mix
 Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metrics.json and RUN/loss.png."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
-    parser.add_argument("--data", required=True, help="training dataset folder")
+    parser.add_argument(
+        "--data",
+        required=True,
+        nargs="+",
+        help="training dataset folder; several folders of one sensor are read as one training set (a mixture)",
+    )
     parser.add_argument("--val", required=True, help="validation dataset folder (another seed)")
     parser.add_argument("--out", required=True, help="run folder")
     parser.add_argument("--size", default="", help="network size (task-specific; default: the smallest)")
@@ -45,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = TrainConfig(
         task=args.task,
-        data=args.data,
+        data=args.data[0] if len(args.data) == 1 else tuple(args.data),
         val=args.val,
         out=args.out,
         size=args.size,
