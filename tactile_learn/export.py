@@ -145,14 +145,14 @@ def export(
         "scene": scene.to_dict(),
         "scene_digest": scene.digest,
         "training": {
-            "data": {**result["train_data"], "path": portable_path(result["train_data"]["path"])},
+            "data": {**result["train_data"], "path": _portable_paths(result["train_data"]["path"])},
             "validation": {**result["val_data"], "path": portable_path(result["val_data"]["path"])},
             "epochs_run": result["epochs_run"],
             "best_epoch": result["best_epoch"],
             "train_seconds": result["train_seconds"],
             "threads": result["threads"],
             "config": {
-                k: portable_path(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
+                k: _portable_paths(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
             },
         },
         "parity": parity,
@@ -193,6 +193,11 @@ def portable_path(path: str | Path) -> str:
         return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:
         return p.name
+
+
+def _portable_paths(paths: str | list[str] | tuple[str, ...]) -> str | list[str]:
+    """A run's training data: one folder, or several read as one training set."""
+    return portable_path(paths) if isinstance(paths, str) else [portable_path(p) for p in paths]
 
 
 def _dataset_seed(path: str | Path) -> int | None:

@@ -1,21 +1,18 @@
-"""Training on several datasets of one sensor at once, and the separable forward model of the
-exported strip networks."""
+"""Training on several datasets of one sensor at once (a mixture of stimuli)."""
 
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from synth.dataset import generate
 from synth.errors import DataError
 from synth.scene import load_scene
-from synth.sensors.strips import StripSensor
 from tactile_learn.cli import main
-from tactile_learn.nets.strips_deploy import SeparableStripForward
 from tactile_learn.tasks import get_task
 from tactile_learn.training_sets import TrainingSet
 
@@ -56,31 +53,42 @@ def test_a_training_set_refuses_another_sensor(folders: Path) -> None:
         TrainingSet([str(folders / "mixed"), str(folders / "strips5")], same)
 
 
-def test_train_reads_several_folders(folders: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.fixture(scope="module")
+def mixture_run(folders: Path) -> Path:
+    """A tiny network trained on two folders at once (the CLI)."""
     out = folders / "run"
     argv = ["train", "--task", "strips", "--data", str(folders / "mixed"), str(folders / "spheres")]
     argv += ["--val", str(folders / "val"), "--out", str(out), "--epochs", "1", "--batch-size", "50"]
     assert main([*argv, "--threads", "1", "--quiet", "--size", "tiny"]) == 0
-    metrics = json.loads((out / "metrics.json").read_text())
+    return out
+
+
+def test_train_reads_several_folders(mixture_run: Path) -> None:
+    metrics = json.loads((mixture_run / "metrics.json").read_text())
     assert metrics["train_data"]["n"] == 500 and metrics["train_data"]["seed"] == [2, 1]
     assert metrics["size"] == "tiny"
 
 
-@pytest.mark.parametrize("scene_name", ["strips16", "strips5"])
-def test_the_separable_forward_model_matches_the_dense_operators(scene_name: str) -> None:
-    """Against the simulator's float64 operators (dense, ``cell_stress_operators``) on random maps
-    up to 200 kPa: within 1e-3 of a strip's load noise. Two terms of the expansion would not be."""
-    scene = load_scene(scene_name)
-    sensor = StripSensor(scene.sensor)
-    n, m = sensor.n_rows, sensor.n_cols
-    rows_op, cols_op = sensor.array.cell_stress_operators()
-    maps = np.random.default_rng(7).random((6, n, m)) ** 4 * 200.0
-    flat = maps.reshape(6, n * m)
-    stress = np.concatenate([flat @ rows_op.T, flat @ cols_op.T], axis=1).clip(0.0)
-    gain = stress / (stress + scene.sensor.piezo.p0_kpa)
-    want = np.concatenate([gain[:, : n * m].reshape(6, n, m).sum(2), gain[:, n * m :].reshape(6, n, m).sum(1)], 1)
-    noise = float(sensor.load_noise().min())
-    got = SeparableStripForward(scene)(torch.from_numpy(maps.astype(np.float32))).double().numpy()
-    assert np.abs(got - want).max() < 1e-3 * noise
-    coarse = SeparableStripForward(scene, rank=1)(torch.from_numpy(maps.astype(np.float32))).double().numpy()
-    assert np.abs(coarse - want).max() > 1e-3 * noise  # the check can tell a truncated kernel
+def test_averaged_weights_of_two_runs(folders: Path, mixture_run: Path) -> None:
+    import torch
+
+    from synth.errors import ModelError
+    from tactile_learn.checkpoints import load_torch, load_weights
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    import average_weights
+
+    first = mixture_run
+    second = folders / "tuned"
+    argv = ["train", "--task", "strips", "--data", str(folders / "mixed"), "--val", str(folders / "val")]
+    argv += ["--out", str(second), "--epochs", "1", "--batch-size", "50", "--threads", "1", "--quiet"]
+    assert main([*argv, "--size", "tiny", "--init", str(first), "--lr", "0.01"]) == 0
+    out = folders / "soup"
+    assert average_weights.main([str(first), str(second), "--weight", "0.25", "--last-epoch", "--out", str(out)]) == 0
+    a, b = load_weights(first)["state_dict"], load_torch(second / "checkpoint.pt")["net"]
+    soup = load_weights(out)["state_dict"]
+    key = next(k for k in soup if soup[k].is_floating_point() and not torch.equal(a[k], b[k]))
+    assert torch.allclose(soup[key], 0.75 * a[key] + 0.25 * b[key])
+    assert not torch.allclose(soup[key], a[key])
+    with pytest.raises(ModelError, match="differ"):
+        average_weights.main([str(first), "models/strips16.pt", "--out", str(folders / "bad")])

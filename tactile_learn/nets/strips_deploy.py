@@ -14,10 +14,7 @@ step) is rearranged before export, with its weights folded, never retrained:
   1 x 1 convolution of a broadcast row profile is a row term), the context into the row term;
 - each mixing block adds its input through its own 1 x 1 weights (``W + I``);
 - the output scales (the intersection estimate's slope, the learned part's unit, softplus' beta)
-  are folded into the head, and the frame's total multiplies the map once;
-- the readings residual pushes the map through the cover kernel in separable form
-  (:class:`SeparableStripForward`: a few 16 x 16 products instead of one product with a dense
-  256 x 512 operator, which alone cost about a fifth of the batch-1 time).
+  are folded into the head, and the frame's total multiplies the map once.
 
 :func:`deploy` checks the rearranged module against the original on probe inputs and refuses a
 difference above ``tolerance`` of the output range.
@@ -28,61 +25,14 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import numpy as np
 import torch
 from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
-from synth.sensors.strips import StripSensor
-from tactile_learn.nets.strips_general import GeneralStripNet, StripResidual
+from tactile_learn.nets.strips_general import GeneralStripNet, StripForward, StripResidual
 
-__all__ = ["DeployedStripNet", "SeparableStripForward", "deploy"]
-
-#: terms kept of the cover kernel's separable expansion: the singular values of the 16 x 16 array's
-#: operators fall to 1.4e-2, 3.9e-4, 5e-6 and 2e-9 of the first (rows; columns 2.5e-2, 1.2e-3,
-#: 5e-5, 1e-7). Four terms give the float64 dense operator's strip loads to 1e-6 (0.0002 of a
-#: strip's load noise) on random maps up to 200 kPa, as the dense float32 product does; three
-#: would leave 5e-4 (0.07 of the noise)
-SEPARABLE_RANK = 4
-
-
-class SeparableStripForward(nn.Module):
-    """:class:`~tactile_learn.nets.strips_general.StripForward` with the cover kernel in separable
-    form. The stress on row segment ``(i, j)`` from cell ``(k, l)`` is ``K[(i, j), (k, l)]``; as a
-    matrix over ``(i, k)`` x ``(j, l)`` it has rapidly falling singular values, so
-    ``stress = sum_r A_r P B_r^T`` with 16 x 16 factors ``A_r``, ``B_r`` (one truncated SVD, here
-    at construction). Row segments sum along their row, column segments along their column."""
-
-    left: torch.Tensor
-    right_t: torch.Tensor
-
-    def __init__(self, scene: Scene, rank: int = SEPARABLE_RANK) -> None:
-        super().__init__()
-        sensor = StripSensor(scene.sensor)
-        n, m = sensor.n_rows, sensor.n_cols
-        lefts, rights = [], []
-        for operator in sensor.array.cell_stress_operators():  # row segments, then column segments
-            arranged = operator.reshape(n, m, n, m).transpose(0, 2, 1, 3).reshape(n * n, m * m)
-            u, sv, vt = np.linalg.svd(arranged)
-            for r in range(rank):
-                lefts.append(u[:, r].reshape(n, n) * np.sqrt(sv[r]))
-                rights.append(vt[r].reshape(m, m).T * np.sqrt(sv[r]))
-        self.register_buffer("left", torch.from_numpy(np.stack(lefts).astype(np.float32)))
-        self.register_buffer("right_t", torch.from_numpy(np.stack(rights).astype(np.float32)))
-        self.rank, self.n_rows, self.n_cols = rank, n, m
-        self.p0 = float(scene.sensor.piezo.p0_kpa)
-        self.exponent = float(scene.sensor.piezo.exponent)
-
-    def forward(self, maps: torch.Tensor) -> torch.Tensor:
-        terms = self.left @ maps.clamp_min(0.0).unsqueeze(1) @ self.right_t  # (B, 2 rank, N, M)
-        # the truncated kernel can leave -1e-6-sized stress far from any load: clamped
-        stress = terms.reshape(-1, 2, self.rank, self.n_rows, self.n_cols).sum(dim=2).clamp_min(0.0)
-        if self.exponent == 1.0:
-            gain = stress / (stress + self.p0)  # 1 - (1 + s/p0)^-1, without the cancellation
-        else:
-            gain = 1.0 - torch.pow(1.0 + stress / self.p0, -self.exponent)
-        return torch.cat([gain[:, 0].sum(dim=2), gain[:, 1].sum(dim=1)], dim=1)
+__all__ = ["DeployedStripNet", "deploy"]
 
 
 def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int]) -> nn.Conv1d:
@@ -205,7 +155,7 @@ class DeployedStripNet(nn.Module):
         self.head = head
         self.clip = (-20.0 + math.log(slope), 4.0 + math.log(slope))
         self.unit = net.pressure_scale / net.total_ref / 4.0
-        self.forward_model = SeparableStripForward(scene)
+        self.forward_model = StripForward(scene)
         self.residual = StripResidual(scene)
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
