@@ -160,7 +160,7 @@ def export(
             "train_seconds": result["train_seconds"],
             "threads": result["threads"],
             "config": {
-                k: portable_path(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
+                k: _portable_paths(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
             },
         },
         "parity": parity,
@@ -203,6 +203,11 @@ def portable_path(path: str | Path) -> str:
         return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:
         return p.name
+
+
+def _portable_paths(paths: str | list[str] | tuple[str, ...]) -> str | list[str]:
+    """A run's training data: one folder, or several read as one training set."""
+    return portable_path(paths) if isinstance(paths, str) else [portable_path(p) for p in paths]
 
 
 def _dataset_seed(path: str | Path) -> int | None:
@@ -287,4 +292,4 @@ def _card_data(train_data: dict[str, Any]) -> dict[str, Any]:
     on simulated touches, no path) as it is."""
     if "path" not in train_data:
         return dict(train_data)
-    return {**train_data, "path": portable_path(train_data["path"])}
+    return {**train_data, "path": _portable_paths(train_data["path"])}

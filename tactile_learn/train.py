@@ -33,7 +33,6 @@ import numpy as np
 import torch
 
 from synth import __version__
-from synth.dataset import Dataset
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
 from synth.scene import load_scene
@@ -43,6 +42,7 @@ from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.torch_estimator import TorchEstimator
+from tactile_learn.training_sets import TrainingSet
 
 __all__ = ["TrainConfig", "train"]
 
@@ -52,7 +52,7 @@ CHECKPOINT = "checkpoint.pt"
 @dataclass(frozen=True)
 class TrainConfig:
     task: str
-    data: str
+    data: str | tuple[str, ...]  # a dataset folder, or several of one sensor read as one training set
     out: str
     val: str | None = None
     size: str = ""
@@ -92,7 +92,7 @@ class TrainConfig:
             raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
 
 
-def _val_data(config: TrainConfig, train_set: Dataset | TouchStream) -> EvalData:
+def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> EvalData:
     task = get_task(config.task)
     if config.val:
         # data without a scene of its own (recordings, an .npz) is read with the training scene
@@ -199,23 +199,24 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
     out = Path(config.out)
     if config.threads:
         torch.set_num_threads(config.threads)
-    train_set: Dataset | TouchStream
+    train_set: TrainingSet | TouchStream
     if config.stream:
         train_set = TouchStream(
             load_scene(config.scene), config.stream, config.stream_seed, config.shard_size, config.fresh
         )
+        folders: tuple[str, ...] = ()
+        source = str(config.scene)
     else:
-        train_set = Dataset(config.data)
+        folders = (config.data,) if isinstance(config.data, str) else tuple(config.data)
+        train_set = TrainingSet(folders, task.same_sensor)
+        source = ", ".join(folders)
     scene = train_set.scene
     if scene.task != config.task:
-        raise DataError(f"{config.data or config.scene}: the scene is for task {scene.task!r}, not {config.task!r}")
+        raise DataError(f"{source}: the scene is for task {scene.task!r}, not {config.task!r}")
     keys = list(task.train_keys_for(scene))
     missing = [k for k in keys if k not in train_set.keys]
     if missing:
-        raise DataError(
-            f"{config.data or config.scene}: training needs arrays {', '.join(missing)} "
-            "(generate with the default outputs)"
-        )
+        raise DataError(f"{source}: training needs arrays {', '.join(missing)} (generate with the default outputs)")
     val = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
     # every rank checks before any writes (rank 0 creates the folder)
@@ -239,7 +240,7 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
     if batches_per_epoch < 1:
-        raise DataError(f"{config.data or config.scene}: fewer samples than one batch of {config.batch_size}")
+        raise DataError(f"{source}: fewer samples than one batch of {config.batch_size}")
     if config.batch_size % world:
         # equal shards: the mean of the ranks' gradients is then the whole batch's gradient
         raise ConfigError(f"--batch-size: {config.batch_size} does not split into {world} equal shards (processes)")
@@ -374,7 +375,11 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
         "train_data": (
             train_set.describe()
             if isinstance(train_set, TouchStream)
-            else {"path": str(config.data), "seed": train_set.seed, "n": len(train_set)}
+            else {
+                "path": folders[0] if len(folders) == 1 else list(folders),
+                "seed": train_set.seeds[0] if len(folders) == 1 else train_set.seeds,
+                "n": len(train_set),
+            }
         ),
         "val_data": {"path": str(config.val), "n": len(val)},
         "epochs_run": state["epoch"],

@@ -17,6 +17,7 @@ EXAMPLES = """\
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
   tactile-learn train --task thermal --scene thermal --stream 160000 --val data/th-val --out runs/th-stream
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
+  tactile-learn train --task strips --data data/mixed-train data/s16-train --val data/mixed-val --out runs/mix
   # data-parallel on N processes (DDP, gloo, CPU): each rank trains on its share of every batch, rank 0 writes the run
   torchrun --nproc-per-node 2 -m tactile_learn.cli train --task strips --data data/s16-train --val data/s16-val \
       --out runs/s16-ddp --threads 1
@@ -28,7 +29,13 @@ Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metric
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
-    parser.add_argument("--data", default=None, help="training dataset folder (or --scene with --stream)")
+    parser.add_argument(
+        "--data",
+        default=None,
+        nargs="+",
+        help="training dataset folder; several folders of one sensor are read as one training set (a mixture);"
+        " or --scene with --stream",
+    )
     parser.add_argument("--scene", default=None, help="instead of --data: simulate this scene (name or .toml)")
     parser.add_argument(
         "--stream", type=non_negative_int, default=0, help="with --scene: samples simulated per epoch (nothing written)"
@@ -65,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = TrainConfig(
         task=args.task,
-        data=args.data or "",
+        data=("" if not args.data else args.data[0] if len(args.data) == 1 else tuple(args.data)),
         val=args.val,
         out=args.out,
         size=args.size,

@@ -47,6 +47,8 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
     # the small network with one correction step through the forward model: measured about as
     # accurate for the same training, at 2.5 times the latency (README), so not the default
     "corrected": (24, 16, 192, 2, True),
+    # the fast one (issue 15's small model): half the crossing channels, one mixing block
+    "tiny": (16, 8, 96, 1, False),
 }
 
 
