@@ -183,7 +183,14 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
     config.validate()
     rank, world, started = _world()
     try:
-        return _train(config, resume, progress, rank, world)
+        result = _train(config, resume, progress, rank, world)
+        if world > 1:
+            import torch.distributed as dist
+
+            # rank 0 still writes the run after the last collective: a rank that tore the group
+            # down meanwhile could abort inside gloo ("terminate called without an active exception")
+            dist.barrier()
+        return result
     finally:
         if started:
             import torch.distributed as dist

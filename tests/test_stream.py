@@ -7,6 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip("torch", reason="torch (training extra) is not installed")
+
 import torch
 
 from synth.dataset import Dataset, generate, stream

@@ -9,6 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+pytest.importorskip("torch", reason="torch (training extra) is not installed")
+
 import torch
 import torch.distributed as dist
 import torch.multiprocessing as mp
