@@ -47,14 +47,18 @@ from typing import Any
 import numpy as np
 
 from synth.config import dumps_toml
-from synth.errors import ConfigError, InputError, TactileError
+from synth.errors import ConfigError, TactileError
 from synth.io import atomic_write_json, atomic_write_text
 from synth.scene import Scene, load_scene, parse_scene, read_toml
 
 __all__ = ["Budget", "SweepConfig", "load_sweep", "run_point", "run_sweep", "sweep_points", "wire_count"]
 
 RESULT = "result.json"
-_TOP_KEYS = ("name", "base", "mode", "points", "seed", "parameters", "budget", "description")
+_TOP_KEYS = ("name", "base", "mode", "points", "seed", "parameters", "budget", "description", "rank_by")
+# what the recommendation may rank designs by: +1 higher is better, -1 lower is better. r and NRMSE
+# are computed on each design's own cells (a coarse array scores high r: one cell holds a contact);
+# the peak-position error in mm compares arrays of different pitch and strip count on one scale.
+RANK_METRICS = {"pearson_r_mean": 1, "nrmse": -1, "peak_err_mm_median": -1, "peak_err_mm_mean": -1}
 
 
 @dataclass(frozen=True)
@@ -77,6 +81,7 @@ class SweepConfig:
     seed: int = 0
     budget: Budget = field(default_factory=Budget)
     description: str = ""
+    rank_by: str = "pearson_r_mean"
 
 
 def _budget(data: Any, source: str) -> Budget:
@@ -136,8 +141,12 @@ def parse_sweep(data: Mapping[str, Any], source: str = "<sweep>") -> SweepConfig
             raise ConfigError(f"{source}: {name}: expected a non-negative integer, got {value!r}")
     if mode == "random" and points < 1:
         raise ConfigError(f"{source}: points: random mode needs points >= 1")
+    rank_by = data.get("rank_by", "pearson_r_mean")
+    if rank_by not in RANK_METRICS:
+        raise ConfigError(f"{source}: rank_by: {rank_by!r} is not one of {', '.join(RANK_METRICS)}")
     config = SweepConfig(
         name=str(data.get("name", Path(source).stem)),
+        rank_by=rank_by,
         base=base,
         parameters=parameters,
         mode=mode,
@@ -224,6 +233,7 @@ def run_point(
     from synth.dataset import generate
     from tactile_learn.methods import resolve_method
     from tactile_learn.tasks import get_task
+    from tactile_learn.tasks.base import readable_frames
     from tactile_learn.timing import time_predict
 
     torch.set_num_threads(1)  # one core per worker: the cluster's processes share the machine
@@ -239,7 +249,7 @@ def run_point(
         atomic_write_text(out / "scene.toml", dumps_toml(scene.to_dict()))
         result.update(scene=scene.to_dict(), scene_digest=scene.digest, wires=wire_count(scene), seeds=seeds)
         generate(scene, bud.test, seeds["test"], out / "test")
-        data, unreadable = _readable_frames(task, task.load_eval_data(out / "test"))
+        data, unreadable = readable_frames(task, task.load_eval_data(out / "test"))
         result["unreadable"] = unreadable
         methods: dict[str, Any] = {name: resolve_method(scene.task, name, scene) for name in bud.methods}
         if bud.train:
@@ -285,23 +295,6 @@ def run_point(
     result["seconds"] = time.perf_counter() - started
     atomic_write_json(out / RESULT, result)
     return result
-
-
-def _readable_frames(task: Any, data: Any) -> tuple[Any, dict[str, Any]]:
-    """The test frames every method can read, and what was left out. A design whose ADC saturates
-    under strong presses (few bits, a thin cover) makes frames no estimator may read (their loads
-    are unknown); they are a property of the design, counted in the result rather than failing it."""
-    keep = np.ones(len(data), bool)
-    reason = ""
-    for i in range(len(data)):
-        try:
-            task.check_inputs(data.inputs[i : i + 1], data.scene)
-        except InputError as exc:
-            keep[i] = False
-            reason = reason or str(exc)
-    if not keep.any():
-        raise InputError(f"no test frame can be read by this design ({reason})")
-    return data.subset(np.flatnonzero(keep)), {"share": float(1 - keep.mean()), "first_reason": reason}
 
 
 def run_sweep(
@@ -359,7 +352,8 @@ def run_sweep(
         "computed_now": len(todo),
         "seconds": time.perf_counter() - started,
         "points": finished,
-        "recommended": recommend(finished),
+        "rank_by": config.rank_by,
+        "recommended": recommend(finished, config.rank_by),
     }
     atomic_write_json(folder / "sweep.json", summary)
     atomic_write_text(folder / "sweep.md", markdown(summary))
@@ -367,23 +361,32 @@ def run_sweep(
     return summary
 
 
-def _best_method(point: dict[str, Any]) -> tuple[str, dict[str, Any]]:
-    """The point's method with the highest r (only called on finished points, which have methods)."""
+def _score(point: Mapping[str, Any], row: Mapping[str, Any], rank_by: str) -> float:
+    """Higher is better. A frame the design cannot read (a saturated ADC) gives no map: r counts it
+    as 0 (scaled by the readable share), an error is divided by that share."""
+    readable = 1.0 - _unreadable(point)
+    value = float(row.get(rank_by, float("nan")))
+    if value != value:  # a method without this metric never wins
+        return float("-inf")
+    return value * readable if RANK_METRICS[rank_by] > 0 else -value / max(readable, 1e-9)
+
+
+def _best_method(point: dict[str, Any], rank_by: str = "pearson_r_mean") -> tuple[str, dict[str, Any]]:
+    """The point's best method by ``rank_by`` (only called on finished points, which have methods)."""
     rows = point["methods"]
-    name = max(rows, key=lambda m: rows[m].get("pearson_r_mean", -1.0))
+    name = max(rows, key=lambda m: _score(point, rows[m], rank_by))
     return name, rows[name]
 
 
-def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per wire budget (each wire count the sweep tried): the design with the highest r that needs
-    no more wires, and the method that reaches it. A frame the design cannot read (a saturated ADC)
-    gives no map: it counts as r = 0, so r is scaled by the share of readable frames."""
+def recommend(points: Sequence[dict[str, Any]], rank_by: str = "pearson_r_mean") -> list[dict[str, Any]]:
+    """Per wire budget (each wire count the sweep tried): the best design by ``rank_by`` that needs
+    no more wires, and the method that reaches it (see :func:`_score` for unreadable frames)."""
     ok = [p for p in points if p.get("status") == "ok" and p.get("methods")]
     out = []
     for budget in sorted({int(p["wires"]) for p in ok}):
         candidates = [p for p in ok if p["wires"] <= budget]
-        best = max(candidates, key=lambda p: _effective_r(p, _best_method(p)[1]))
-        method, row = _best_method(best)
+        best = max(candidates, key=lambda p: _score(p, _best_method(p, rank_by)[1], rank_by))
+        method, row = _best_method(best, rank_by)
         out.append(
             {
                 "wire_budget": budget,
@@ -391,10 +394,12 @@ def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "values": best["values"],
                 "wires": best["wires"],
                 "method": method,
+                "rank_by": rank_by,
                 "pearson_r_mean": row["pearson_r_mean"],
-                "pearson_r_effective": _effective_r(best, row),
+                "pearson_r_effective": row["pearson_r_mean"] * (1.0 - _unreadable(best)),
                 "unreadable_share": _unreadable(best),
                 "nrmse": row.get("nrmse"),
+                "peak_err_mm_median": row.get("peak_err_mm_median"),
                 "latency_us_p50_b1": row["latency_us_p50_b1"],
             }
         )
@@ -403,10 +408,6 @@ def recommend(points: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def _unreadable(point: Mapping[str, Any]) -> float:
     return float(point.get("unreadable", {}).get("share", 0.0))
-
-
-def _effective_r(point: Mapping[str, Any], row: Mapping[str, Any]) -> float:
-    return float(row["pearson_r_mean"]) * (1.0 - _unreadable(point))
 
 
 def markdown(summary: dict[str, Any]) -> str:
@@ -435,15 +436,18 @@ def markdown(summary: dict[str, Any]) -> str:
         "",
         "## Recommended design per wire budget",
         "",
-        "| wires at most | design | method | r mean | r (saturated = 0) | NRMSE | latency b1 (us) |",
-        "|---:|---|---|---:|---:|---:|---:|",
+        f"Ranked by `{summary.get('rank_by', 'pearson_r_mean')}`.",
+        "",
+        "| wires at most | design | method | r mean | r (saturated = 0) | NRMSE | peak error median (mm) |"
+        " latency b1 (us) |",
+        "|---:|---|---|---:|---:|---:|---:|---:|",
     ]
     for rec in summary["recommended"]:
         design = ", ".join(f"{k}={v}" for k, v in rec["values"].items())
         lines.append(
             f"| {rec['wire_budget']} | {design} ({rec['wires']} wires) | {rec['method']} | "
             f"{rec['pearson_r_mean']:.3f} | {rec['pearson_r_effective']:.3f} | {rec['nrmse']:.3f} | "
-            f"{rec['latency_us_p50_b1']:.0f} |"
+            f"{rec.get('peak_err_mm_median') or float('nan'):.2f} | {rec['latency_us_p50_b1']:.0f} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -40,7 +40,7 @@ from tactile_learn.checkpoints import MODEL, build_net, load_torch, load_weights
 from tactile_learn.progress import progress_bar
 from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
-from tactile_learn.tasks.base import EvalData
+from tactile_learn.tasks.base import EvalData, readable_frames
 from tactile_learn.torch_estimator import TorchEstimator
 from tactile_learn.training_sets import TrainingSet
 
@@ -92,7 +92,7 @@ class TrainConfig:
             raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
 
 
-def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> EvalData:
+def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tuple[EvalData, float]:
     task = get_task(config.task)
     if config.val:
         # data without a scene of its own (recordings, an .npz) is read with the training scene
@@ -106,7 +106,10 @@ def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> Eval
             )
     else:
         raise ConfigError("--val: a validation dataset is required (generate one with another --seed)")
-    return data.subset(slice(0, config.val_limit))
+    # frames the sensor cannot read (a saturated ADC) cannot be validated on: left out, counted in
+    # the run's metrics (``val_unreadable``)
+    data, unreadable = readable_frames(task, data.subset(slice(0, config.val_limit)))
+    return data, float(unreadable["share"])
 
 
 def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
@@ -224,7 +227,7 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
     missing = [k for k in keys if k not in train_set.keys]
     if missing:
         raise DataError(f"{source}: training needs arrays {', '.join(missing)} (generate with the default outputs)")
-    val = _val_data(config, train_set)
+    val, val_unreadable = _val_data(config, train_set)
     ckpt_path = out / CHECKPOINT
     # every rank checks before any writes (rank 0 creates the folder)
     occupied = _broadcast(out.exists() and any(out.iterdir()), world)
@@ -379,6 +382,7 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
         "size": size,
         "scene": scene.name,
         "scene_digest": scene.digest,
+        "val_unreadable": val_unreadable,
         "train_data": (
             train_set.describe()
             if isinstance(train_set, TouchStream)

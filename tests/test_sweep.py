@@ -90,16 +90,16 @@ def test_saturated_frames_are_counted_not_fatal_and_lower_the_recommendation() -
 
     from synth.dataset import simulate_shard
     from synth.scene import load_scene
-    from tactile_learn.sweep import _readable_frames, recommend
+    from tactile_learn.sweep import recommend
     from tactile_learn.tasks import get_task
-    from tactile_learn.tasks.base import EvalData
+    from tactile_learn.tasks.base import EvalData, readable_frames
 
     scene = load_scene("strips5")
     task = get_task("strips")
     arrays = simulate_shard(scene, 0, 0, 10)
     data = EvalData(inputs=arrays["readings"].copy(), truth={"pressure": arrays["pressure"]}, scene=scene)
     data.inputs[[2, 7], 0] = scene.sensor.readout.full_scale_v  # two frames reach the ADC's top
-    kept, unreadable = _readable_frames(task, data)
+    kept, unreadable = readable_frames(task, data)
     assert len(kept) == 8 and unreadable["share"] == pytest.approx(0.2)
     assert "saturated" in unreadable["first_reason"]
     np.testing.assert_array_equal(kept.inputs, np.delete(data.inputs, [2, 7], axis=0))
@@ -146,3 +146,22 @@ def test_a_layout_is_a_design_parameter(tmp_path: Path) -> None:
     result = run_point(values, config.base.to_dict(), budget, 0, str(tmp_path / "point"))
     assert result["status"] == "ok", result.get("error")
     assert result["wires"] == 16 and set(result["methods"]) == {"intersection", "projection"}
+
+
+def test_rank_by_an_error_in_mm_and_bad_rank_by(tmp_path: Path) -> None:
+    from tactile_learn.sweep import recommend
+
+    def point(pid: str, wires: int, r: float, err: float) -> dict[str, object]:
+        row = {"pearson_r_mean": r, "peak_err_mm_median": err, "nrmse": 0.5, "latency_us_p50_b1": 1.0}
+        return {"id": pid, "status": "ok", "wires": wires, "values": {"n": wires}, "methods": {"m": row}}
+
+    points = [point("coarse", 16, 0.87, 0.50), point("fine", 32, 0.83, 0.30)]
+    assert [rec["point"] for rec in recommend(points)] == ["coarse", "coarse"]  # r favours the coarse array
+    by_mm = recommend(points, "peak_err_mm_median")
+    assert [rec["point"] for rec in by_mm] == ["coarse", "fine"]  # lower error wins once its wires fit
+    path = tmp_path / "ranked.toml"
+    path.write_text('rank_by = "peak_err_mm_median"\n' + SWEEP.format(train=0))
+    assert load_sweep(path).rank_by == "peak_err_mm_median"
+    path.write_text('rank_by = "speed"\n' + SWEEP.format(train=0))
+    with pytest.raises(ConfigError, match="rank_by: 'speed' is not one of"):
+        load_sweep(path)

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from synth.dataset import Dataset, load_arrays
-from synth.errors import DataError
+from synth.errors import DataError, InputError
 from synth.scene import Scene, load_scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.validation import as_batch
@@ -26,7 +26,7 @@ from tactile_learn.validation import as_batch
 if TYPE_CHECKING:  # torch only for type checking: importing a task never imports torch
     import torch
 
-__all__ = ["EvalData", "Task"]
+__all__ = ["EvalData", "Task", "readable_frames"]
 
 
 @dataclass
@@ -214,3 +214,22 @@ class Task(ABC):
     def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         """Training loss of the network output against the targets from ``training_batch``."""
         raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+
+def readable_frames(task: Task, data: EvalData) -> tuple[EvalData, dict[str, Any]]:
+    """The frames of ``data`` that the task's input check accepts, and what was left out
+    (``share``, ``first_reason``). A sensor whose ADC saturates under strong presses (few bits, a thin
+    cover) makes frames no estimator may read (their loads are unknown): they are a property of the
+    design, to be counted, not a reason to stop an evaluation. Nothing readable is a DataError."""
+    keep = np.ones(len(data), bool)
+    reason = ""
+    for i in range(len(data)):
+        try:
+            task.check_inputs(data.inputs[i : i + 1], data.scene)
+        except InputError as exc:
+            keep[i] = False
+            reason = reason or str(exc)
+    if len(data) and not keep.any():
+        raise DataError(f"{data.source or 'data'}: no frame can be read by this sensor ({reason})")
+    share = float(1 - keep.mean()) if len(data) else 0.0
+    return data.subset(np.flatnonzero(keep)), {"share": share, "first_reason": reason}
