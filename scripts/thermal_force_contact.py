@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from thermal_robot_protocol import robot_data, split
 
 from synth.materials import get_material
-from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
+from synth.sensors.thermal_dynamics import channel_terms
 from tactile_learn import thermal_calibration as calibration
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings
@@ -70,15 +70,7 @@ class ForceContact(calibration._Problem):
             weight[i] = np.where(press > 0.05, np.clip(press, 0.0, None) ** k, 0.0)
         steps = np.diff(weight, axis=1, prepend=0.0)
         for c, ch in enumerate(("heated", "passive") if self.passive else ("heated",)):
-            model = ChannelModel.create(
-                heat_capacity=values[f"{ch}.heat_capacity_j_m2k"],
-                loss=values[f"{ch}.loss_w_m2k"],
-                conductance=values[f"{ch}.conductance_w_m2k"] * self.h_scale,
-                effusivity=e,
-                spreading=spreading,
-                lag1_s=values[f"{ch}.lag_s"],
-                lag2_s=values[f"{ch}.lag2_s"],
-            )
+            model = self.channel_model(values, ch, e, spreading)
             step = channel_terms(model, np.broadcast_to(tau, (self.n, n_fine))).obj
             obj = np.stack([np.convolve(steps[i], step[i])[:n_fine] for i in range(self.n)])[:, ::SUB]
             # the design's obj enters its columns as 1 + obj, drift + lead_lag obj and -obj

@@ -278,6 +278,18 @@ class _Problem:
         ramp = np.full(self.n, values["contact.ramp_s"])
         return values, lead, ramp
 
+    def channel_model(self, values: dict[str, Any], channel: str, effusivity: Any, spreading: Any) -> ChannelModel:
+        """One channel's lumped model from the unpacked parameters (every touch's contact scale applied)."""
+        return ChannelModel.create(
+            heat_capacity=values[f"{channel}.heat_capacity_j_m2k"],
+            loss=values[f"{channel}.loss_w_m2k"],
+            conductance=values[f"{channel}.conductance_w_m2k"] * self.h_scale,
+            effusivity=effusivity,
+            spreading=spreading,
+            lag1_s=values[f"{channel}.lag_s"],
+            lag2_s=values[f"{channel}.lag2_s"],
+        )
+
     def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Columns (C, n, W, 3) per channel (R0, drift, obj) and the heater's power column (n, W)."""
         values, lead, ramp = self.unpack(free)
@@ -290,15 +302,7 @@ class _Problem:
         cols = np.zeros((len(channels), self.n, self.length, 3))
         power = np.zeros((self.n, self.length))
         for c, ch in enumerate(channels):
-            model = ChannelModel.create(
-                heat_capacity=values[f"{ch}.heat_capacity_j_m2k"],
-                loss=values[f"{ch}.loss_w_m2k"],
-                conductance=values[f"{ch}.conductance_w_m2k"] * self.h_scale,
-                effusivity=e,
-                spreading=spreading,
-                lag1_s=values[f"{ch}.lag_s"],
-                lag2_s=values[f"{ch}.lag2_s"],
-            )
+            model = self.channel_model(values, ch, e, spreading)
             t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
             terms = channel_terms(model, t_rel, ramp, t_off)
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
