@@ -69,7 +69,7 @@ def model_scene(task: str, spec: str) -> Scene | None:
 
 
 def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Estimator:
-    """The estimator ``spec`` names for ``task`` on ``scene``."""
+    """The estimator ``spec`` names for ``task`` on ``scene``, prepared."""
     task_obj = get_task(task)
     classical = task_obj.classical_methods()
     if spec in classical:
@@ -93,5 +93,4 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     if scene.digest != model.card_scene_.digest:
         # another scene of the same sensor (e.g. a calibrated copy): inputs are checked against it
         model = OnnxEstimator(path, threads=threads, scene=scene)
-        model.scene_  # noqa: B018 - fails now, with a clear error, if the shapes do not match
-    return model
+    return model.prepare()  # fails now, with a clear error, if the shapes do not match

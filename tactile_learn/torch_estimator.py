@@ -4,7 +4,6 @@ backend). Imports torch: never imported by the runtime or the classical path."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -18,24 +17,46 @@ __all__ = ["TorchEstimator"]
 
 class TorchEstimator(Estimator):
     kind = "learned"
-    backend = "torch"
 
     def __init__(
-        self, net: torch.nn.Module, task: str, scene: Scene, name: str = "torch", batch_size: int = 4096
+        self,
+        net: torch.nn.Module,
+        task: str,
+        scene: Scene,
+        name: str = "torch",
+        batch_size: int = 4096,
+        backend: str = "torch",
     ) -> None:
         self.net = net
         self.task_name = task
         self.scene = scene
         self.name = name
         self.batch_size = batch_size
+        self.backend = backend
+
+    @property
+    def is_classifier(self) -> bool:  # type: ignore[override]
+        """Whether the task classifies (thermal): ``predict_proba`` and labels from ``predict``."""
+        return self.task_name == "thermal"
+
+    def prepare(self) -> TorchEstimator:
+        """Look the task up once (its input check and the completion of a raw prediction)."""
+        if "task_" not in self.__dict__:
+            self.task_ = get_task(self.task_name)
+        return self
 
     @classmethod
     def from_checkpoint(
-        cls, source: str | Path, scene: Scene | None = None, name: str | None = None, threads: int | None = None
+        cls,
+        source: str | Path,
+        scene: Scene | None = None,
+        name: str | None = None,
+        threads: int | None = None,
+        backend: str = "torch",
     ) -> TorchEstimator:
         """The network of a finished run folder or a model's ``NAME.pt`` (see
-        :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on);
-        ``threads`` sets torch's intra-op threads (process-wide)."""
+        :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on),
+        prepared; ``threads`` sets torch's intra-op threads (process-wide)."""
         from tactile_learn.checkpoints import build_net, load_weights, weights_scene
 
         saved = load_weights(source)
@@ -43,14 +64,18 @@ class TorchEstimator(Estimator):
         if threads:
             torch.set_num_threads(threads)
         label = name or (Path(source).with_suffix(".onnx").name if Path(source).is_file() else Path(source).name)
-        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label)
+        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label, backend=backend).prepare()
 
-    def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:
-        return self
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """The network's output (a classifier's: the most probable label, int64)."""
+        out = self.predict_proba(X)
+        return out.argmax(axis=1).astype(np.int64) if self.is_classifier else out
 
     @torch.inference_mode()
-    def predict(self, X: np.ndarray) -> np.ndarray:
-        x = get_task(self.task_name).check_inputs(X, self.scene)
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """The network's output for ``X`` (a classifier's: probabilities)."""
+        task = self.prepared_state("task_")
+        x = task.check_inputs(X, self.scene)
         was_training = self.net.training
         self.net.eval()
         try:
@@ -65,4 +90,4 @@ class TorchEstimator(Estimator):
                 raw = np.concatenate(parts).astype(np.float32, copy=False)
         finally:
             self.net.train(was_training)
-        return get_task(self.task_name).finish_prediction(x, raw, self.scene)
+        return task.finish_prediction(x, raw, self.scene)

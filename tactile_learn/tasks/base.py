@@ -21,7 +21,7 @@ from synth.dataset import Dataset, load_arrays
 from synth.errors import DataError, InputError
 from synth.scene import Scene, load_scene
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.validation import as_batch
+from tactile_learn.validation.common import as_batch
 
 if TYPE_CHECKING:  # torch only for type checking: importing a task never imports torch
     import torch

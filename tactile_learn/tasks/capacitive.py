@@ -40,9 +40,9 @@ from synth.scene import Scene, load_scene, parse_scene
 from synth.sensors.capacitive.config import G_TO_N, CalibrationTable, CapacitiveConfig
 from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, fit_calibration
 from tactile_learn.contact_metrics import contact_metrics
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
-from tactile_learn.validation import capacitive_input
+from tactile_learn.validation.capacitive import capacitive_input
 
 if TYPE_CHECKING:
     import torch
@@ -113,13 +113,7 @@ class CapacitiveTask(Task):
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator
 
-        def fitted(cls: type[Estimator]) -> Callable[[Scene], Estimator]:
-            def make(scene: Scene) -> Estimator:
-                return cls(scene).fit()  # type: ignore[call-arg]
-
-            return make
-
-        return {"bicubic": fitted(BicubicEstimator), "deconvolution": fitted(DeconvolutionEstimator)}
+        return {"bicubic": prepared(BicubicEstimator), "deconvolution": prepared(DeconvolutionEstimator)}
 
     # ---- data ------------------------------------------------------------------------------------
 

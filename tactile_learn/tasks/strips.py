@@ -11,10 +11,11 @@ import numpy as np
 from synth.errors import DataError
 from synth.scene import Scene
 from synth.sensors.strips_config import StripsConfig
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.metrics import strip_map_metrics
+from tactile_learn.strips_guard import CHECK_OUTPUTS  # re-exported: its old home
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
-from tactile_learn.validation import as_batch
+from tactile_learn.validation.strips import strips_bounds, strips_input
 
 if TYPE_CHECKING:
     import torch
@@ -29,10 +30,6 @@ __all__ = [
     "ghost_to_real",
     "pairing",
 ]
-
-#: the exported graph's further outputs, per frame: the readings residual of its map (in noise
-#: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
-CHECK_OUTPUTS = ("residual", "balance")
 
 
 def _apart(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
@@ -186,17 +183,10 @@ class StripsTask(Task):
         return a.task == b.task == self.name and sensor(a) == sensor(b)
 
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        readout = scene.sensor.readout
-        return as_batch(
-            inputs,
-            self.input_shape(scene),
-            name="readings",
-            upper=readout.full_scale_v,
-            upper_name="the ADC's full scale",
-        )
+        return strips_input(inputs, scene.sensor)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        return 0.0, float(scene.sensor.readout.full_scale_v), False
+        return strips_bounds(scene.sensor)
 
     def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
         g = scene.sensor.geometry
@@ -206,7 +196,7 @@ class StripsTask(Task):
         from tactile_learn.estimators.classical.intersection import IntersectionEstimator
         from tactile_learn.estimators.classical.projection import ProjectionEstimator
 
-        return {"intersection": IntersectionEstimator, "projection": ProjectionEstimator}
+        return {"intersection": prepared(IntersectionEstimator), "projection": prepared(ProjectionEstimator)}
 
     def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
         path = Path(source)

@@ -1,0 +1,591 @@
+"""Calibration of a real thermal fingertip (heated and optional passive thermistor) from labelled touches.
+
+The model (:mod:`synth.sensors.thermal_dynamics`, every term a verified closed form): each channel
+is a lumped body (heat capacity ``C``, loss ``G``) read through two thermistor lags, touching the
+object through a contact conductance ``H``; the object (a semi-infinite body of its class's
+effusivity ``e`` and a contact patch of radius ``a``: spreading conductance ``4 k / (pi a)``) has
+an unknown temperature, the same for both channels. The contact builds up over a ramp starting a
+lead before the onset (the force's half-plateau crossing, or the curve's departure), each channel
+may drift before contact (a heater still settling, the approach to a cold object), and the heater's
+power changes at a delay after the onset: by ``-(G (R0 + r (tau_1 + tau_2) - T_amb) + C r)`` with a
+fitted ``T_amb`` (a rig that switches its heater off on contact: ``T_amb`` is the ambient; a
+controller that goes on heating: ``T_amb`` above the set point, a rise)::
+
+    reading_c(t) = R0_c + r_c drift_c(t) + (R0_c + r_c (tau_1 + tau_2) - T_obj) obj_c(t)
+                   - [heated] (G (R0 + r (tau_1 + tau_2) - T_amb) + C r) power(t - t_off)
+
+The temperatures identify only ``e / C``, ``G / C`` and ``H / C``: each class's effusivity is fixed
+at its library value (geometric mean over its materials), which sets the scale. Fitted (nonlinear,
+multi-start ``scipy.optimize.least_squares``, trust region with bounds, short runs from jittered
+starts, the best run to convergence): the heated channel's ``C, G, H``, the passive one's ``G`` and
+its ``C`` and ``H`` as ratios to the heated twin's (within a factor 10 and 20: objects at the passive
+thermistor's own temperature give it no signal, so its scale is barely seen), each channel's sum of
+lags and its split (kept away from equal lags, a double root), the radius ``a``, the contact's lead
+and ramp and the time of the heater's power change. Linear, solved exactly inside every evaluation (variable
+projection): per touch ``R0_c, r_c, T_obj``, and the shared ``T_amb``, with weak priors that keep
+them physical when a channel alone cannot pin them (``T_obj`` within ~25 K of the sensor, drifts of
+a few tenths of K/s). Then every touch is refitted alone for its own contact (a conductance factor,
+lead and ramp): their spread is the touch-to-touch variation a calibrated scene draws from.
+
+Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
+pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
+strays from a smooth spline relative to its slope), so ``sigma(t)^2 = sigma_w^2 + (sigma_t dx/dt)^2``.
+The report gives the fit's residual in those units, every parameter with its bounds, the ones at a
+bound (with the likely reason), and the ones the data do not identify (posterior s.d. above a factor
+of 2, or a correlation above 0.99 with another).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+from scipy.interpolate import LSQUnivariateSpline
+
+from synth.errors import DataError
+from synth.materials import Material
+from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
+
+__all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
+
+
+#: rate (Hz) the curves are fitted at: the curves are smooth (lags of tenths of a second)
+FIT_HZ = 20.0
+#: the fit starts this long before the onset (earlier samples hold the heater's settling)
+PRE_S = 0.3
+#: prior s.d. of the object's temperature around the sensor's (K) and of a drift (K/s)
+OBJECT_PRIOR_K = 25.0
+DRIFT_PRIOR_K_S = 0.5
+#: a parameter whose log s.d. exceeds this (a factor 2) is reported as not identified
+UNIDENTIFIED_LOG_SD = math.log(2.0)
+#: what the model is expected to leave unexplained (K): the data residuals' unit in the fit
+MODEL_ERROR_K = 0.01
+#: weak priors: s.d. of a scale parameter's log (a factor 10) and of a time (s)
+PRIOR_LOG_SD = math.log(10.0)
+PRIOR_LINEAR_SD = 1.0
+#: the priors' weight (0: off). Off by default: on the robot recordings they moved the fit to worse
+#: local minima without making two sessions agree (the report lists what the data leave free)
+PRIOR_WEIGHT = 0.0
+#: solver evaluations of each multi-start's short run
+SHORT_RUN = 15
+
+
+@dataclass(frozen=True)
+class Parameter:
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    start: float
+    log: bool = True
+    doc: str = ""
+
+    def to_free(self, value: float) -> float:
+        return math.log(value) if self.log else value
+
+    def from_free(self, value: float) -> float:
+        return math.exp(value) if self.log else value
+
+
+_CHANNEL_PARAMS = (
+    ("heat_capacity_j_m2k", "J/(m^2 K)", 20.0, 2e5, 2000.0, "heat capacity per area C"),
+    ("loss_w_m2k", "W/(m^2 K)", 0.01, 2e4, 30.0, "loss G to the surroundings"),
+    ("conductance_w_m2k", "W/(m^2 K)", 2.0, 2e5, 700.0, "contact conductance H"),
+    ("lags_s", "s", 0.01, 10.0, 0.8, "sum of the thermistor lags tau_1 + tau_2"),
+    (
+        "lag_share",
+        "",
+        0.52,
+        0.995,
+        0.7,
+        "tau_1 / (tau_1 + tau_2): kept away from 1/2, where equal lags are a double root",
+    ),
+)
+
+
+#: the passive channel's heat capacity and contact conductance as ratios to the heated twin's:
+#: (lowest, highest, start)
+_TWIN_RATIOS = {"heat_capacity_j_m2k": (0.1, 10.0, 0.5), "conductance_w_m2k": (0.05, 10.0, 0.5)}
+
+
+@dataclass
+class FitTouch:
+    """One labelled touch on the fitting grid: times ``t`` (s, record time), channels (degC),
+    the onset (s, record time) and the class index."""
+
+    file: str
+    label: int
+    t: np.ndarray
+    heated: np.ndarray
+    passive: np.ndarray | None
+    onset_s: float
+
+
+@dataclass
+class CalibrationResult:
+    """The fitted values (by parameter name), per-touch values, the noise, and the report."""
+
+    values: dict[str, float]
+    per_touch: list[dict[str, float]]
+    noise: dict[str, float]
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def prepare_touches(
+    series: Sequence[tuple[str, int, np.ndarray, np.ndarray, np.ndarray | None, float]], fs: float = FIT_HZ
+) -> list[FitTouch]:
+    """Resample ``(file, label, time_s, heated, passive, onset_s)`` records to ``fs`` from
+    ``PRE_S`` before the onset (or the record's start) to the record's end."""
+    out = []
+    for file, label, time_s, heated, passive, onset in series:
+        start = max(float(time_s[0]), onset - PRE_S)
+        grid = start + np.arange(math.floor((float(time_s[-1]) - start) * fs + 1e-9) + 1) / fs
+        if grid[-1] - onset < 1.0:
+            raise DataError(f"{file}: less than 1 s of contact after the onset ({onset:.3f} s): too short to calibrate")
+        out.append(
+            FitTouch(
+                file,
+                label,
+                grid,
+                np.interp(grid, time_s, heated),
+                None if passive is None else np.interp(grid, time_s, passive),
+                onset,
+            )
+        )
+    return out
+
+
+def noise_levels(series: Sequence[tuple[np.ndarray, np.ndarray, float]]) -> dict[str, float]:
+    """White noise and timing jitter of records ``(time_s, values, onset_s)`` (one channel).
+
+    Each record is smoothed by a least-squares cubic spline with knots every 0.25 s (which follows
+    every physical change of these sensors); ``sigma_w`` is the RMS of what it leaves before the
+    onset, ``sigma_t`` the median over records of that remainder's RMS divided by the slope's RMS
+    where the curve moves faster than 0.1 K/s (time-stamp jitter moves a sample by ``slope * dt``).
+    """
+    white, jitter = [], []
+    for t, x, onset in series:
+        knots = np.arange(t[0] + 0.25, t[-1] - 0.2, 0.25)
+        if len(knots) < 4:
+            continue
+        spline = LSQUnivariateSpline(t, x, knots, k=3)
+        rest = x - spline(t)
+        slope = spline.derivative()(t)
+        pre = (t < onset - 0.1) & (t > t[0] + 0.1)
+        if pre.sum() >= 20:
+            white.append(float(np.sqrt(np.mean(rest[pre] ** 2))))
+        moving = np.abs(slope) > 0.1
+        if moving.sum() >= 50:
+            jitter.append(float(np.sqrt(np.mean(rest[moving] ** 2) / np.mean(slope[moving] ** 2))))
+    return {
+        "white_k": float(np.median(white)) if white else 1e-3,
+        "timing_jitter_s": float(np.median(jitter)) if jitter else 0.0,
+    }
+
+
+def _class_nominal(materials: Sequence[Material]) -> tuple[float, float]:
+    """A class's effusivity and diffusivity (m^2/s): geometric means over its library materials."""
+    e = math.exp(float(np.mean([math.log(m.effusivity) for m in materials])))
+    alpha = math.exp(float(np.mean([math.log(m.diffusivity_mm2_s * 1e-6) for m in materials])))
+    return e, alpha
+
+
+class _Problem:
+    """The variable-projection least-squares problem over a batch of touches."""
+
+    def __init__(self, touches: list[FitTouch], classes: Sequence[Sequence[Material]], heater_off: bool) -> None:
+        self.touches = touches
+        self.n = len(touches)
+        self.passive = all(t.passive is not None for t in touches)
+        self.heater_off = heater_off
+        self.length = max(len(t.t) for t in touches)
+        n, w = self.n, self.length
+        self.mask = np.zeros((n, w), dtype=bool)
+        self.t = np.zeros((n, w))
+        self.x = np.zeros((2, n, w))
+        for i, tc in enumerate(touches):
+            m = len(tc.t)
+            self.mask[i, :m] = True
+            self.t[i, :m] = tc.t
+            self.t[i, m:] = tc.t[-1]
+            self.x[0, i, :m] = tc.heated
+            if tc.passive is not None:
+                self.x[1, i, :m] = tc.passive
+        self.onset = np.array([tc.onset_s for tc in touches])
+        self.label = np.array([tc.label for tc in touches])
+        params: list[Parameter] = []
+        channels = ("heated", "passive") if self.passive else ("heated",)
+        for ch in channels:
+            for name, unit, lo, hi, start, doc in _CHANNEL_PARAMS:
+                log = name != "lag_share"
+                if ch == "passive" and name in _TWIN_RATIOS:
+                    # a passive thermistor's scale is hardly seen (objects at its own temperature give
+                    # it no signal): its C and H are held within a factor of the heated twin's
+                    r_lo, r_hi, r_start = _TWIN_RATIOS[name]
+                    ratio = name.replace("_j_m2k", "").replace("_w_m2k", "") + "_ratio"
+                    doc = f"{doc}, relative to the heated channel's"
+                    params.append(Parameter(f"passive.{ratio}", "", r_lo, r_hi, r_start, True, doc))
+                    continue
+                first = start if ch == "heated" or not log else start / 4
+                params.append(Parameter(f"{ch}.{name}", unit, lo, hi, first, log, doc))
+        # the temperatures identify only e / C, G / C, H / C: each class's effusivity is fixed at its
+        # library value (the geometric mean over its materials), which sets the scale of C
+        self.class_e = np.array([_class_nominal(mats)[0] for mats in classes])
+        self.class_alpha = np.array([_class_nominal(mats)[1] for mats in classes])
+        params.append(Parameter("contact.radius_mm", "mm", 0.1, 50.0, 5.0, True, "contact patch radius a"))
+        params.append(Parameter("contact.lead_s", "s", -0.3, 1.5, 0.1, False, "contact start before the onset"))
+        params.append(Parameter("contact.ramp_s", "s", 0.02, 2.0, 0.1, True, "contact build-up time"))
+        if heater_off:
+            params.append(
+                Parameter("heater.off_after_onset_s", "s", -1.5, 1.5, 0.0, False, "time of the heater's power change")
+            )
+        self.shared = params
+        self.per_touch: list[Parameter] = []
+        #: per-touch contact quality: every channel's H times this (1 in the shared fit)
+        self.h_scale = np.ones(self.n)
+
+    @property
+    def n_free(self) -> int:
+        return len(self.shared)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = [p.to_free(p.lo) for p in self.shared] + [p.to_free(p.lo) for p in self.per_touch for _ in range(self.n)]
+        hi = [p.to_free(p.hi) for p in self.shared] + [p.to_free(p.hi) for p in self.per_touch for _ in range(self.n)]
+        return np.array(lo), np.array(hi)
+
+    def start(self) -> np.ndarray:
+        return np.array(
+            [p.to_free(p.start) for p in self.shared]
+            + [p.to_free(p.start) for p in self.per_touch for _ in range(self.n)]
+        )
+
+    def unpack(self, free: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
+        values = {p.name: p.from_free(float(v)) for p, v in zip(self.shared, free, strict=True)}
+        for name in _TWIN_RATIOS:
+            ratio = name.replace("_j_m2k", "").replace("_w_m2k", "") + "_ratio"
+            if f"passive.{ratio}" in values:
+                values[f"passive.{name}"] = values[f"heated.{name}"] * values[f"passive.{ratio}"]
+        for ch in ("heated", "passive"):
+            if f"{ch}.lags_s" in values:
+                values[f"{ch}.lag_s"] = values[f"{ch}.lags_s"] * values[f"{ch}.lag_share"]
+                values[f"{ch}.lag2_s"] = values[f"{ch}.lags_s"] * (1.0 - values[f"{ch}.lag_share"])
+        lead = np.full(self.n, values["contact.lead_s"])
+        ramp = np.full(self.n, values["contact.ramp_s"])
+        return values, lead, ramp
+
+    def channel_model(self, values: dict[str, Any], channel: str, effusivity: Any, spreading: Any) -> ChannelModel:
+        """One channel's lumped model from the unpacked parameters (every touch's contact scale applied)."""
+        return ChannelModel.create(
+            heat_capacity=values[f"{channel}.heat_capacity_j_m2k"],
+            loss=values[f"{channel}.loss_w_m2k"],
+            conductance=values[f"{channel}.conductance_w_m2k"] * self.h_scale,
+            effusivity=effusivity,
+            spreading=spreading,
+            lag1_s=values[f"{channel}.lag_s"],
+            lag2_s=values[f"{channel}.lag2_s"],
+        )
+
+    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Columns (C, n, W, 3) per channel (R0, drift, obj) and the heater's power column (n, W)."""
+        values, lead, ramp = self.unpack(free)
+        radius = values["contact.radius_mm"] * 1e-3
+        e = self.class_e[self.label]
+        alpha = self.class_alpha[self.label]
+        spreading = 4.0 * e * np.sqrt(alpha) / (math.pi * radius)  # 4 k / (pi a), k = e sqrt(alpha)
+        t_rel = self.t - (self.onset - lead)[:, None]
+        channels = ("heated", "passive") if self.passive else ("heated",)
+        cols = np.zeros((len(channels), self.n, self.length, 3))
+        power = np.zeros((self.n, self.length))
+        for c, ch in enumerate(channels):
+            model = self.channel_model(values, ch, e, spreading)
+            t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
+            terms = channel_terms(model, t_rel, ramp, t_off)
+            lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
+            # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
+            cols[c, :, :, 0] = 1.0 + terms.obj
+            cols[c, :, :, 1] = terms.drift + lead_lag * terms.obj
+            cols[c, :, :, 2] = -terms.obj
+            if terms.power is not None:
+                # the heater's power at the switch: its loss to the ambient plus the net heating,
+                # Q = G (R0 + r lead_lag - T_amb) + C r; it drops to 0 at t_off
+                g, cap = values[f"{ch}.loss_w_m2k"], values[f"{ch}.heat_capacity_j_m2k"]
+                cols[c, :, :, 0] -= g * terms.power
+                cols[c, :, :, 1] -= (g * lead_lag + cap) * terms.power
+                power = g * terms.power  # the column of T_amb (shared by every touch)
+        return cols, power
+
+    def solve(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Residuals (C, n, W) (0 outside each record), linear values (n, 2C + 1), and ``Q``."""
+        cols, power = self.design(free)
+        n_ch = cols.shape[0]
+        m = 2 * n_ch + 1  # R0 and drift per channel, then T_obj
+        a = np.zeros((self.n, n_ch * self.length + 1 + n_ch, m))
+        y = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
+        q = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
+        w = self.mask.astype(float)
+        for c in range(n_ch):
+            rows = slice(c * self.length, (c + 1) * self.length)
+            a[:, rows, 2 * c] = cols[c, :, :, 0] * w
+            a[:, rows, 2 * c + 1] = cols[c, :, :, 1] * w
+            a[:, rows, -1] = cols[c, :, :, 2] * w
+            y[:, rows] = self.x[c] * w
+        q[:, : self.length] = power * w
+        # weak priors (rows after the data): T_obj near the first channel's onset value, drifts small
+        base = np.array([tc.heated[max(int(np.searchsorted(tc.t, tc.onset_s)) - 1, 0)] for tc in self.touches])
+        ref = base if not self.passive else np.array([tc.passive[0] for tc in self.touches if tc.passive is not None])
+        prior = n_ch * self.length
+        a[:, prior, -1] = 1.0 / OBJECT_PRIOR_K
+        y[:, prior] = ref / OBJECT_PRIOR_K
+        for c in range(n_ch):
+            a[:, prior + 1 + c, 2 * c + 1] = 1.0 / DRIFT_PRIOR_K_S
+        # variable projection with the shared ambient T_amb: per touch x = A+ (y - T_amb q), then
+        # T_amb by 1-D least squares of the projected residuals
+        scale = np.sqrt((a**2).sum(axis=1)) + 1e-12
+        an = a / scale[:, None, :]
+        pinv = np.linalg.pinv(an)  # (n, m, rows)
+        proj_y = y - np.einsum("nrm,nmk,nk->nr", an, pinv, y)
+        proj_q = q - np.einsum("nrm,nmk,nk->nr", an, pinv, q)
+        denom = float((proj_q**2).sum())
+        power_q = float((proj_q * proj_y).sum()) / denom if self.heater_off and denom > 0 else 0.0
+        sol = np.einsum("nmk,nk->nm", pinv, y - power_q * q) / scale
+        fit = np.einsum("nrm,nm->nr", a, sol) + power_q * q
+        res = (fit - y)[:, : n_ch * self.length].reshape(self.n, n_ch, self.length).transpose(1, 0, 2)
+        res = res * w[None]
+        return res, sol, power_q
+
+    def residuals(self, free: np.ndarray) -> np.ndarray:
+        """Data residuals in units of the model error, then one weak prior row per parameter."""
+        res, _, _ = self.solve(free)
+        return np.concatenate([res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)])
+
+    def prior(self, free: np.ndarray) -> np.ndarray:
+        """Weak priors around the typical values (a factor of 10 for a scale, 1 s for a time): a
+        parameter the data leave free stays where a sensor usually is instead of drifting to a
+        bound, and two sessions of one sensor calibrate alike."""
+        rows = []
+        for p, v in zip(self.shared, free, strict=True):
+            width = PRIOR_LOG_SD if p.log else PRIOR_LINEAR_SD
+            rows.append((v - p.to_free(p.start)) / width)
+        return np.array(rows)
+
+
+def calibrate_channels(
+    touches: list[FitTouch],
+    classes: Sequence[Sequence[Material]],
+    noise: dict[str, dict[str, float]],
+    *,
+    starts: int = 8,
+    seed: int = 0,
+    heater_off: bool = True,
+) -> CalibrationResult:
+    """Multi-start fit of the model to ``touches`` (see the module docstring)."""
+    started = time.perf_counter()
+    problem = _Problem(touches, classes, heater_off)
+    lo, hi = problem.bounds()
+    rng = np.random.default_rng(seed)
+
+    def run(x0: np.ndarray, nfev: int) -> optimize.OptimizeResult:
+        return optimize.least_squares(
+            problem.residuals,
+            np.clip(x0, lo + 1e-9, hi - 1e-9),
+            bounds=(lo, hi),
+            x_scale="jac",
+            max_nfev=nfev,
+            diff_step=1e-5,
+        )
+
+    # multi-start: short runs from the default start and random points of the (log) box, then the
+    # best one runs to convergence
+    base = problem.start()
+    candidates = []
+    evaluations = 0
+    for s in range(starts):
+        x0 = base.copy()
+        if s:  # around the default: far corners of the box are unphysical and slow to leave
+            x0 = base + rng.normal(0.0, 1.0, len(base)) * np.minimum(1.0, 0.25 * (hi - lo))
+        fit = run(x0, SHORT_RUN)
+        evaluations += int(fit.nfev)
+        candidates.append(fit)
+    best = min(candidates, key=lambda f: f.cost)
+    final = run(best.x, 200)
+    evaluations += int(final.nfev)
+    res, sol, power_q = problem.solve(final.x)
+    values, lead, ramp = problem.unpack(final.x)
+    if problem.heater_off:
+        values["heater.ambient_c"] = power_q
+    spread = _touch_spread(touches, classes, heater_off, problem, final.x)
+    per_touch = []
+    n_ch = 2 if problem.passive else 1
+    for i in range(len(touches)):
+        row: dict[str, float] = {"lead_s": float(lead[i]), "ramp_s": float(ramp[i]), "object_c": float(sol[i, -1])}
+        row.update(spread[i])
+        row["heated_onset_c"] = float(sol[i, 0])
+        row["heated_drift_k_s"] = float(sol[i, 1])
+        if n_ch == 2:
+            row["passive_onset_c"] = float(sol[i, 2])
+            row["passive_drift_k_s"] = float(sol[i, 3])
+        per_touch.append(row)
+    report = _report(problem, final, res, values, per_touch, noise, evaluations, time.perf_counter() - started)
+    return CalibrationResult(values, per_touch, {**noise.get("heated", {})}, report)
+
+
+def _touch_spread(
+    touches: list[FitTouch],
+    classes: Sequence[Sequence[Material]],
+    heater_off: bool,
+    problem: _Problem,
+    shared: np.ndarray,
+) -> list[dict[str, float]]:
+    """How much the touches differ: each touch refitted alone for its contact (a conductance
+    factor, the lead and the build-up time), everything else at the shared fit. Their spread is
+    what a calibrated scene draws from (a press is never quite the same twice)."""
+    names = [p.name for p in problem.shared]
+    i_lead, i_ramp = names.index("contact.lead_s"), names.index("contact.ramp_s")
+    rows = []
+    for tc in touches:
+        single = _Problem([tc], classes, heater_off)
+
+        def residuals(theta: np.ndarray, single: _Problem = single) -> np.ndarray:
+            single.h_scale = np.array([math.exp(theta[0])])
+            x = shared.copy()
+            x[i_lead], x[i_ramp] = theta[1], theta[2]
+            return single.residuals(x)
+
+        lead_p, ramp_p = problem.shared[i_lead], problem.shared[i_ramp]
+        lo = np.array([math.log(0.1), lead_p.to_free(lead_p.lo), ramp_p.to_free(ramp_p.lo)])
+        hi = np.array([math.log(10.0), lead_p.to_free(lead_p.hi), ramp_p.to_free(ramp_p.hi)])
+        x0 = np.clip(np.array([0.0, shared[i_lead], shared[i_ramp]]), lo + 1e-6, hi - 1e-6)
+        fit = optimize.least_squares(residuals, x0, bounds=(lo, hi), x_scale="jac", max_nfev=40, diff_step=1e-5)
+        jac = np.asarray(fit.jac)
+        s2 = float(np.mean(fit.fun**2))
+        # the factor's posterior s.d. (log): a wood at room temperature barely depends on H
+        cov = np.linalg.pinv(jac.T @ jac) * s2
+        rows.append(
+            {
+                "touch_conductance_factor": math.exp(float(fit.x[0])),
+                "touch_conductance_sd_log": float(np.sqrt(max(cov[0, 0], 0.0))),
+                "touch_lead_s": float(fit.x[1]),
+                "touch_ramp_s": ramp_p.from_free(float(fit.x[2])),
+                "touch_rms_k": float(np.sqrt(np.mean(fit.fun[: -len(single.shared)] ** 2))) * MODEL_ERROR_K,
+            }
+        )
+    return rows
+
+
+#: why a parameter sits at a bound, by (parameter, bound)
+_BOUND_REASONS = {
+    ("lag_share", "upper"): "one lag is enough: the second pole is faster than the samples resolve (tau_2 < 1 %)",
+    ("lag_share", "lower"): "two equal lags (kept 4 % apart: equal lags are a double root)",
+    ("ramp_s", "lower"): "the contact is a step at this rate: the presses are fast",
+    ("off_after_onset_s", "upper"): "the heater's power changes late (1.5 s or more after the onset): a slow "
+    "response, not a switch at the press (the scene puts heater = 'step' there)",
+    ("off_after_onset_s", "lower"): "the heater's power changes before the onset",
+    ("heat_capacity_ratio", "lower"): "the passive channel's scale is not identified (objects at its own "
+    "temperature give it no signal): held at a tenth of the heated twin's",
+    ("conductance_ratio", "lower"): "the passive channel's contact is not identified: held at the bound",
+    ("", ""): "the data push it there: the model lacks something the curves show (check the residual)",
+}
+
+
+def _report(
+    problem: _Problem,
+    fit: optimize.OptimizeResult,
+    res: np.ndarray,
+    values: dict[str, float],
+    per_touch: list[dict[str, float]],
+    noise: dict[str, dict[str, float]],
+    evaluations: int,
+    seconds: float,
+) -> dict[str, Any]:
+    """Parameters (value, bounds, at a bound, posterior s.d.), residuals in noise sigma, and the
+    parameters the data do not identify."""
+    k = len(problem.shared)
+    jac = np.asarray(fit.jac.toarray() if hasattr(fit.jac, "toarray") else fit.jac)[:, :k]
+    dof = max(len(fit.fun) - problem.n_free, 1)
+    scale2 = float((fit.fun**2).sum()) / dof
+    try:
+        cov = np.linalg.pinv(jac.T @ jac) * scale2
+    except np.linalg.LinAlgError:  # pragma: no cover - pinv of a finite matrix converges
+        cov = np.full((k, k), np.inf)
+    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    corr = cov / np.maximum(np.outer(sd, sd), 1e-300)
+    params: dict[str, Any] = {}
+    at_bound, unidentified = [], []
+    for j, p in enumerate(problem.shared):
+        free = float(fit.x[j])
+        span = p.to_free(p.hi) - p.to_free(p.lo)
+        edge = None
+        if free - p.to_free(p.lo) < 1e-3 * span:
+            edge = "lower"
+        elif p.to_free(p.hi) - free < 1e-3 * span:
+            edge = "upper"
+        partner = [
+            problem.shared[i].name for i in range(k) if i != j and abs(corr[j, i]) > 0.99 and np.isfinite(corr[j, i])
+        ]
+        loose = sd[j] > (UNIDENTIFIED_LOG_SD if p.log else 0.25)
+        entry: dict[str, Any] = {
+            "value": values[p.name],
+            "unit": p.unit,
+            "bounds": [p.lo, p.hi],
+            "meaning": p.doc,
+            ("sd_log" if p.log else "sd"): float(sd[j]),
+        }
+        if edge:
+            entry["at_bound"] = edge
+            entry["why_at_bound"] = _BOUND_REASONS.get((p.name.split(".")[-1], edge), _BOUND_REASONS[("", "")])
+            at_bound.append(p.name)
+        if loose or partner:
+            entry["identified"] = False
+            spread = f"a factor {math.exp(min(sd[j], 700.0)):.3g}" if p.log else f"{sd[j]:.3g}"
+            entry["why_not"] = f"posterior s.d. {spread}" if loose else f"correlated > 0.99 with {', '.join(partner)}"
+            unidentified.append(p.name)
+        params[p.name] = entry
+    if "heater.ambient_c" in values:
+        params["heater.ambient_c"] = {
+            "value": values["heater.ambient_c"],
+            "unit": "degC",
+            "bounds": [None, None],
+            "meaning": "the temperature the heated channel loses heat to (its heater's power is G (T - T_amb))",
+        }
+        if values["heater.ambient_c"] > min(r["heated_onset_c"] for r in per_touch):
+            params["heater.ambient_c"]["note"] = (
+                "above the heated reading: the fitted power change is a rise (more heating after the press, "
+                "as a controller that goes on holding its set point adds), not a switch-off"
+            )
+    channels = ("heated", "passive") if problem.passive else ("heated",)
+    residual: dict[str, Any] = {}
+    total_k, total_sigma = [], []
+    for c, ch in enumerate(channels):
+        nz = noise.get(ch, {"white_k": 1e-3, "timing_jitter_s": 0.0})
+        fitted = problem.x[c] + res[c]  # the model's curve
+        slope = np.gradient(fitted, axis=1) * FIT_HZ
+        sigma = np.sqrt(nz["white_k"] ** 2 + (nz["timing_jitter_s"] * slope) ** 2)
+        r = res[c][problem.mask]
+        z = (res[c] / sigma)[problem.mask]
+        total_k.append(r)
+        total_sigma.append(z)
+        residual[ch] = {"rms_k": float(np.sqrt(np.mean(r**2))), "rms_sigma": float(np.sqrt(np.mean(z**2)))}
+        for i, row in enumerate(per_touch):
+            row[f"{ch}_rms_k"] = float(np.sqrt(np.mean(res[c, i][problem.mask[i]] ** 2)))
+    rms_sigma = float(np.sqrt(np.mean(np.concatenate(total_sigma) ** 2)))
+    return {
+        "model": "lumped channel(s) + two thermistor lags + contact ramp + pre-contact drift"
+        + (" + heater switched off after the onset" if problem.heater_off else ""),
+        "parameters": params,
+        "at_bound": at_bound,
+        "not_identified": unidentified,
+        "per_touch": per_touch,
+        "noise": noise,
+        "residual": {
+            **residual,
+            "rms_k": float(np.sqrt(np.mean(np.concatenate(total_k) ** 2))),
+            "rms_sigma": rms_sigma,
+            "within_3_sigma": rms_sigma <= 3.0,
+        },
+        "solver": {"evaluations": evaluations, "seconds": seconds, "status": int(fit.status), "cost": float(fit.cost)},
+    }
