@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     methods = {"intersection": resolve_method("strips", "intersection", scene)}
     for name in args.models:
         methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
-    methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1)
+    methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1).prepare()
     times: dict[str, list[float]] = {k: [] for k in methods}
     for est in methods.values():  # warm-up: sessions, caches
         for i in range(50):

@@ -39,7 +39,7 @@ def main() -> None:
             x, valid = view(data, duration)
             keep = valid & contact
             start = time.perf_counter()
-            metrics = thermal_metrics(estimator.predict(x[keep]), labels[keep], materials)
+            metrics = thermal_metrics(estimator.predict_proba(x[keep]), labels[keep], materials)
             n = int(keep.sum())
             row = {
                 "method": method,

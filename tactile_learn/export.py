@@ -175,7 +175,7 @@ def export(
     # write the card first without held-out metrics, so the runtime can load the model to measure them
     atomic_write_json(card_path(out), card)
     calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
-    extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
+    extras = task.card_extras(OnnxEstimator(out).prepare(), calibrate_on, scene)
     if task.name in IDLE_KEYS:  # the sensor's noise floor at rest: the stream's idle gate
         extras["idle"] = measure_idle_floor(scene)
     if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames

@@ -85,6 +85,7 @@ class OnnxEstimator(Estimator):
             if self.scene is not None:
                 self._check_compatible(self.scene)
             self.task_ = self._task()
+            self.input_check_ = self.task_.input_check(self.scene_)  # the scene's limits, worked out once
             self.session_ = self._session()
             self.run_ = (self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"])
         return self
@@ -237,4 +238,4 @@ class OnnxEstimator(Estimator):
         return self.task_.finish_prediction(x, result, self.scene_)
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
-        return self.task_.check_inputs(X, self.scene_)
+        return self.input_check_(X)

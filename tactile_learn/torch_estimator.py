@@ -43,6 +43,7 @@ class TorchEstimator(Estimator):
         """Look the task up once (its input check and the completion of a raw prediction)."""
         if "task_" not in self.__dict__:
             self.task_ = get_task(self.task_name)
+            self.input_check_ = self.task_.input_check(self.scene)
         return self
 
     @classmethod
@@ -75,7 +76,7 @@ class TorchEstimator(Estimator):
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """The network's output for ``X`` (a classifier's: probabilities)."""
         task = self.prepared_state("task_")
-        x = task.check_inputs(X, self.scene)
+        x = self.input_check_(X)
         was_training = self.net.training
         self.net.eval()
         try:

@@ -61,7 +61,7 @@ def test_idle_frames_never_reach_the_network() -> None:
 
 def test_gated_results_equal_ungated_on_active_frames() -> None:
     frames, _ = mixed_stream(0.5, n=200)
-    model = OnnxEstimator(MODELS / "strips16.onnx")
+    model = OnnxEstimator(MODELS / "strips16.onnx").prepare()
     gated = FrameStream(model, gate=True)
     result = gated.predict(frames)  # one mixed batch: only its active frames go to the network
     active = gated.gate.active(frames)  # type: ignore[union-attr]

@@ -189,7 +189,7 @@ METHODS = [*CLASSICAL, *(f"onnx:{name}" for name in ONNX_MODELS)]
 @cache
 def estimator(method: str) -> Estimator:
     if method.startswith("onnx:"):
-        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:"))
+        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:")).prepare()
     cls = {"triangulation": TriangulationEstimator, "triangulation_fit": FittedTriangulationEstimator}[method]
     return cls(scene()).fit()
 

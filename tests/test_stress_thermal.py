@@ -309,10 +309,10 @@ METHODS = ["curve_match", "physics_fit", "curve_match_18", *(f"onnx:{name}" for 
 @cache
 def estimator(method: str) -> Estimator:
     if method.startswith("onnx:"):
-        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:"))
+        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:")).prepare()
     if method == "curve_match_18":
-        return CurveMatchEstimator(full())
-    return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}[method](wns())
+        return CurveMatchEstimator(full()).prepare()
+    return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}[method](wns()).prepare()
 
 
 def scene_of(method: str) -> Scene:
@@ -420,7 +420,7 @@ def test_large_batches_and_chunks_answer_row_by_row(method: str) -> None:
     for i in (0, len(x) // 2, len(x) - 1):
         assert np.allclose(est.predict(x[i : i + 1])[0], p[i], rtol=0, atol=tol)
     if method == "physics_fit":
-        chunked = PhysicsFitEstimator(scene, chunk=37).predict(x)
+        chunked = PhysicsFitEstimator(scene, chunk=37).prepare().predict(x)
         assert np.array_equal(chunked, p)
 
 

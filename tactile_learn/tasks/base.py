@@ -12,6 +12,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -156,9 +157,14 @@ class Task(ABC):
         return a.digest == b.digest
 
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """Validated float32 batch for ``predict`` (every estimator, classical or ONNX, calls this).
-        Tasks override it to add their own physical bounds (e.g. a saturated ADC)."""
-        return as_batch(inputs, self.input_shape(scene), name=self.input_key)
+        """Validated float32 batch for ``predict``: :meth:`input_check` applied once."""
+        return self.input_check(scene)(inputs)
+
+    def input_check(self, scene: Scene) -> Callable[[Any], np.ndarray]:
+        """The scene's input check with its limits worked out once (an estimator builds it in
+        ``prepare`` and calls it on every batch). Tasks override it with their sensor's check in
+        :mod:`tactile_learn.validation` (its physical bounds, e.g. a saturated ADC)."""
+        return partial(as_batch, feature_shape=self.input_shape(scene), name=self.input_key)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
         """``(low, high, low_strict)``: a float32 batch of the right shape whose values all satisfy
@@ -179,9 +185,9 @@ class Task(ABC):
         raise NotImplementedError(f"task {self.name!r} has no calibration")
 
     def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
-        """Metrics of ``estimator`` on ``data``. Tasks that evaluate several views of the same
-        frames (e.g. thermal contact durations) override this."""
-        return self.metrics(estimator.predict(data.inputs), data)
+        """Metrics of ``estimator`` (prepared here if it is not yet) on ``data``. Tasks that evaluate
+        several views of the same frames (e.g. thermal contact durations) override this."""
+        return self.metrics(estimator.prepare().predict(data.inputs), data)
 
     # ---- learning (torch imported inside the implementations) --------------------------------
 

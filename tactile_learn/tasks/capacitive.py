@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from collections.abc import Callable
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -100,8 +101,9 @@ class CapacitiveTask(Task):
         g = capacitive_config(scene).geometry
         return (g.n_rows, g.n_cols)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        return capacitive_input(inputs, capacitive_config(scene), "cell_load")
+    def input_check(self, scene: Scene) -> Callable[[Any], np.ndarray]:
+        """Calibrated cell loads (:func:`~tactile_learn.validation.capacitive.capacitive_input`)."""
+        return partial(capacitive_input, config=capacitive_config(scene), quantity="cell_load")
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
         # capacitive_input's cell_load check: finite, not below a tenth of the full scale under zero

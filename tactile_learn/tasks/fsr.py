@@ -59,8 +59,8 @@ from synth.sensors import fsr
 from tactile_learn.calibration.fsr_film import calibrate_gains, to_nominal_film
 from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
-from tactile_learn.validation.common import as_batch
-from tactile_learn.validation.fsr import fsr_bounds, fsr_input
+from tactile_learn.validation.common import InputCheck, as_batch
+from tactile_learn.validation.fsr import fsr_check
 
 if TYPE_CHECKING:
     import torch
@@ -158,13 +158,12 @@ class FsrTask(Task):
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         return (fsr.N_SENSORS,)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """:func:`~tactile_learn.validation.fsr.fsr_input`: finite, non-negative codes below full
-        scale, a calibrated film's readings mapped to the nominal film."""
-        return fsr_input(inputs, scene.sensor)
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.fsr.fsr_check`."""
+        return fsr_check(scene.sensor)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        return fsr_bounds(scene.sensor)
+        return fsr_check(scene.sensor).bounds()
 
     def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
         """All six columns 0: no contact (``p_one_press`` 0 too, as for every undetected frame)."""

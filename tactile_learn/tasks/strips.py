@@ -15,7 +15,8 @@ from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.metrics import strip_map_metrics
 from tactile_learn.strips_guard import CHECK_OUTPUTS  # re-exported: its old home
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
-from tactile_learn.validation.strips import strips_bounds, strips_input
+from tactile_learn.validation.common import InputCheck
+from tactile_learn.validation.strips import strips_check
 
 if TYPE_CHECKING:
     import torch
@@ -182,11 +183,12 @@ class StripsTask(Task):
 
         return a.task == b.task == self.name and sensor(a) == sensor(b)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        return strips_input(inputs, scene.sensor)
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.strips.strips_check`."""
+        return strips_check(scene.sensor)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        return strips_bounds(scene.sensor)
+        return strips_check(scene.sensor).bounds()
 
     def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
         g = scene.sensor.geometry
@@ -224,7 +226,9 @@ class StripsTask(Task):
     def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
         """Metrics of the estimate; for a general learned model (one with a readings residual and a
         flag threshold) also its ``flag`` report: how many frames it flags, how good its maps are on
-        flagged and unflagged frames, and the metrics with the fallback on flagged frames."""
+        flagged and unflagged frames, and the metrics with the fallback on flagged frames. The
+        estimator is prepared here if it is not yet."""
+        estimator.prepare()
         checked = _checked_model(estimator)
         if checked is None:
             return self.metrics(estimator.predict(data.inputs), data)
@@ -358,7 +362,7 @@ def _checked_model(estimator: Estimator) -> Any:
         card = estimator.card_
         has_outputs = set(CHECK_OUTPUTS) <= {o["name"] for o in card["outputs"]}
         if has_outputs and "thresholds" in card.get("consistency", {}):
-            return CheckedStripModel(estimator)
+            return CheckedStripModel(estimator).prepare()
     return None
 
 

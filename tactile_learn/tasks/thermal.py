@@ -54,7 +54,8 @@ from synth.sensors.thermal import ThermalConfig
 from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
 from tactile_learn.thermal_signal import onset_seconds, windows
-from tactile_learn.validation.thermal import thermal_bounds, thermal_input, thermal_input_shape
+from tactile_learn.validation.common import InputCheck
+from tactile_learn.validation.thermal import thermal_check, thermal_input_shape
 
 if TYPE_CHECKING:
     import torch
@@ -265,12 +266,12 @@ class ThermalTask(Task):
     def output_labels(self, scene: Scene) -> tuple[str, ...]:
         return class_names(scene)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """:func:`~tactile_learn.validation.thermal.thermal_input`: the shape, NaN/inf, the ADC's range."""
-        return thermal_input(inputs, _config(scene))
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.thermal.thermal_check`."""
+        return thermal_check(_config(scene))
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        return thermal_bounds(_config(scene))
+        return thermal_check(_config(scene)).bounds()
 
     def example_inputs(self, arrays: dict[str, np.ndarray], scene: Scene) -> np.ndarray:
         """Estimator inputs from simulated dataset arrays (``readings`` (B, P, R) and the latents):
@@ -518,8 +519,9 @@ class ThermalTask(Task):
     ) -> dict[str, Any]:
         """Metrics of ``estimator`` on every duration view (see the module docstring); with
         ``group_by`` (a column of a recording's ``touches.csv``, or a latent of simulated data) the
-        same metrics per value of that column under ``by_group``."""
-        proba = estimator.predict_proba  # type: ignore[attr-defined]  # a classifier (thermal methods all are)
+        same metrics per value of that column under ``by_group``. The estimator (a classifier: its
+        ``predict_proba`` is evaluated) is prepared here if it is not yet."""
+        proba = estimator.prepare().predict_proba  # type: ignore[attr-defined]  # thermal methods all classify
         if "record" not in data.extra:
             return self.metrics(proba(data.inputs), data)
         return self.evaluate_by_duration(lambda d, x, rows: proba(x), data, durations, group_by)

@@ -2,40 +2,44 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from synth.sensors import fsr
 from tactile_learn.calibration.fsr_film import to_nominal_film
-from tactile_learn.validation.common import as_batch
+from tactile_learn.validation.common import InputCheck
 
-__all__ = ["fsr_bounds", "fsr_input"]
+__all__ = ["fsr_bounds", "fsr_check", "fsr_input"]
 
 
-def fsr_input(x: Any, config: fsr.FsrConfig) -> np.ndarray:
-    """Validated float32 readings (B, 6): finite, non-negative ADC codes below full scale.
+def _nominal(config: fsr.FsrConfig, gains: np.ndarray, batch: np.ndarray) -> np.ndarray:
+    return to_nominal_film(batch, config, gains)
+
+
+def fsr_check(config: fsr.FsrConfig) -> InputCheck:
+    """Readings (B, 6) as float32: finite, non-negative ADC codes below full scale.
 
     A code at the ADC's full scale means a saturated divider (the FSR law cannot reach it): the
     frame is refused. If the scene carries a film calibration (``[fsr.film] gains``), the readings
     are then mapped to the nominal film (:func:`~tactile_learn.calibration.fsr_film.to_nominal_film`).
     """
-    batch = as_batch(
-        x,
+    gains = config.film.gains
+    return InputCheck(
         (fsr.N_SENSORS,),
-        name="readings",
         upper=float(fsr.Readout(config.readout).full_scale),
         upper_name=f"the {config.readout.adc_bits}-bit ADC's full scale",
+        extra=None if gains is None else partial(_nominal, config, np.asarray(gains)),
     )
-    if config.film.gains is not None and len(batch):
-        batch = to_nominal_film(batch, config, np.asarray(config.film.gains))
-    return batch
+
+
+def fsr_input(x: Any, config: fsr.FsrConfig) -> np.ndarray:
+    """:func:`fsr_check` applied once (a caller checking batch after batch keeps the check)."""
+    return fsr_check(config)(x)
 
 
 def fsr_bounds(config: fsr.FsrConfig) -> tuple[float, float, bool] | None:
-    """``(low, high, low_strict)`` within which a float32 batch of the right shape passes
-    :func:`fsr_input` unchanged; ``None`` for a calibrated film (its readings are mapped, not only
-    checked)."""
-    if config.film.gains is not None:
-        return None
-    return 0.0, float(fsr.Readout(config.readout).full_scale), False
+    """The streaming fast path's bounds; ``None`` for a calibrated film (its readings are mapped,
+    not only checked)."""
+    return fsr_check(config).bounds()

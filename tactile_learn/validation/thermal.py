@@ -6,13 +6,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from synth.errors import InputError
-from tactile_learn.validation.common import as_batch
+from tactile_learn.validation.common import InputCheck
 
 if TYPE_CHECKING:
     from synth.sensors.thermal import ThermalConfig
 
-__all__ = ["thermal_bounds", "thermal_input", "thermal_input_shape"]
+__all__ = ["thermal_bounds", "thermal_check", "thermal_input", "thermal_input_shape"]
 
 
 def thermal_input_shape(config: ThermalConfig) -> tuple[int, ...]:
@@ -22,26 +21,27 @@ def thermal_input_shape(config: ThermalConfig) -> tuple[int, ...]:
     return (len(config.channels), config.window_samples)
 
 
-def thermal_input(x: Any, config: ThermalConfig) -> np.ndarray:
+def thermal_check(config: ThermalConfig) -> InputCheck:
     """Windows (B, W) or (B, C, W) as float32: the shape, NaN/inf, and the ADC's range (a reading at
     either end of ``adc_range_c`` is saturated; below a range starting at 0 degC it is a negative,
     invalid reading)."""
     lo, hi = config.readout.adc_range_c
-    batch = as_batch(
-        x,
+    return InputCheck(
         thermal_input_shape(config),
-        name="readings",
         allow_negative=lo < 0,
-        upper=hi,
+        upper=float(hi),
         upper_name="the ADC's top (degC)",
+        lower=float(lo),
+        lower_name="the ADC's bottom",
+        lower_unit=" degC",
     )
-    if batch.size and (batch <= lo).any():
-        row = int(np.argwhere(batch <= lo)[0][0])
-        raise InputError(f"readings: saturated reading at or below the ADC's bottom ({lo:g} degC) in frame {row}")
-    return batch
 
 
-def thermal_bounds(config: ThermalConfig) -> tuple[float, float, bool]:
-    """``(low, high, low_strict)``: strictly inside the ADC's range passes :func:`thermal_input`."""
-    lo, hi = config.readout.adc_range_c
-    return float(lo), float(hi), True
+def thermal_input(x: Any, config: ThermalConfig) -> np.ndarray:
+    """:func:`thermal_check` applied once (a caller checking batch after batch keeps the check)."""
+    return thermal_check(config)(x)
+
+
+def thermal_bounds(config: ThermalConfig) -> tuple[float, float, bool] | None:
+    """The streaming fast path's bounds: strictly inside the ADC's range."""
+    return thermal_check(config).bounds()

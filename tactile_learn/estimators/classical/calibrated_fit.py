@@ -29,7 +29,7 @@ from synth.sensors.thermal import ThermalConfig, spreading_conductance
 from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
 from tactile_learn.estimators.base import Classifier
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
-from tactile_learn.validation.thermal import thermal_input
+from tactile_learn.validation.thermal import thermal_check
 
 __all__ = ["CalibratedFitEstimator"]
 
@@ -59,6 +59,7 @@ class CalibratedFitEstimator(Classifier):
     def prepare(self) -> CalibratedFitEstimator:
         """Build every template's basis columns (once)."""
         if "templates_" not in self.__dict__:
+            self.input_check_ = thermal_check(self.scene.sensor)
             self.templates_ = self._templates()
         return self
 
@@ -123,7 +124,7 @@ class CalibratedFitEstimator(Classifier):
         return np.stack(columns), np.array(owner)
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_proba_checked(thermal_input(X, self.scene.sensor))
+        return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
     def predict_proba_checked(self, X: np.ndarray) -> np.ndarray:
         self.prepared_state("templates_")  # an unprepared estimator fails before any work

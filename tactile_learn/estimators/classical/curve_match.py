@@ -38,7 +38,7 @@ from synth.scene import Scene
 from synth.sensors.thermal import ContactModel, ThermalConfig, spreading_conductance
 from tactile_learn.estimators.base import Classifier
 from tactile_learn.thermal_signal import LOOKBACK, Onset, detect_onset, drop_segments
-from tactile_learn.validation.thermal import thermal_input
+from tactile_learn.validation.thermal import thermal_check, thermal_input
 
 __all__ = [
     "CurveLibrary",
@@ -136,6 +136,7 @@ class CurveMatchEstimator(Classifier):
         """Build the template library of the scene's materials (once)."""
         if "library_" not in self.__dict__:
             cfg: ThermalConfig = self.scene.sensor
+            self.input_check_ = thermal_check(cfg)
             self.library_ = CurveLibrary(cfg, cfg.material_list, cfg.window_samples, self.n_conductance, self.n_radius)
         return self
 
@@ -157,7 +158,7 @@ class CurveMatchEstimator(Classifier):
         return scores, onset, best
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_proba_checked(thermal_input(X, self.scene.sensor))
+        return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
         x = heated(x)

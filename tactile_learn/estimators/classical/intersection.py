@@ -26,7 +26,7 @@ import numpy as np
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.validation.strips import strips_input
+from tactile_learn.validation.strips import strips_check
 
 __all__ = ["IntersectionEstimator", "channel_loads", "strip_loads"]
 
@@ -61,11 +61,12 @@ class IntersectionEstimator(Estimator):
         """Build the scene's strip sensor (its readout inverse and noise), once; ``sensor``: one
         already built for the same scene (shared with another method)."""
         if "sensor_" not in self.__dict__:
+            self.input_check_ = strips_check(self.scene.sensor)
             self.sensor_ = sensor if sensor is not None else StripSensor(self.scene.sensor)
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_checked(strips_input(X, self.scene.sensor))
+        return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         sensor: StripSensor = self.prepared_state("sensor_")

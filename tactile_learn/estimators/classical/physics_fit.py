@@ -47,7 +47,7 @@ from tactile_learn.estimators.classical.curve_match import (
     nominal_sensor,
     softmax,
 )
-from tactile_learn.validation.thermal import thermal_input
+from tactile_learn.validation.thermal import thermal_check
 
 __all__ = ["CurveFit", "PhysicsFitEstimator", "contact_drop", "fit_curves", "material_gaussians", "material_scores"]
 
@@ -278,6 +278,7 @@ class PhysicsFitEstimator(Classifier):
     def prepare(self) -> PhysicsFitEstimator:
         """Build the curve matcher that gives every fit its onset and initial values (once)."""
         if "matcher_" not in self.__dict__:
+            self.input_check_ = thermal_check(self.scene.sensor)
             self.matcher_ = CurveMatchEstimator(self.scene).prepare()
         return self
 
@@ -328,7 +329,7 @@ class PhysicsFitEstimator(Classifier):
         return CurveFit(theta, cov, chi2, onset.detected)
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_proba_checked(thermal_input(X, self.scene.sensor))
+        return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
         self.prepared_state("matcher_")  # an unprepared estimator fails before any work

@@ -36,7 +36,7 @@ from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.intersection import IntersectionEstimator, channel_loads
-from tactile_learn.validation.strips import strips_input
+from tactile_learn.validation.strips import strips_check
 
 __all__ = ["ProjectionEstimator"]
 
@@ -63,6 +63,7 @@ class ProjectionEstimator(Estimator):
         """Build the strip sensor, its cell operators and the starting method, once; ``sensor``:
         one already built for the same scene."""
         if "model_" not in self.__dict__:
+            self.input_check_ = strips_check(self.scene.sensor)
             sensor = sensor if sensor is not None else StripSensor(self.scene.sensor)
             ops = sensor.array.layer_cell_operators()
             self.model_: dict[str, Any] = {
@@ -95,7 +96,7 @@ class ProjectionEstimator(Estimator):
         return sum(back[:, k * cells : (k + 1) * cells] @ kt for k, kt in enumerate(m["k_t"]))
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_checked(strips_input(X, self.scene.sensor))
+        return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         m: dict[str, Any] = self.prepared_state("model_")

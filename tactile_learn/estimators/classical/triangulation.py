@@ -57,7 +57,7 @@ from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.fsr_check import one_press_check, with_one_press
-from tactile_learn.validation.fsr import fsr_input
+from tactile_learn.validation.fsr import fsr_check
 
 __all__ = [
     "FittedTriangulationEstimator",
@@ -371,11 +371,14 @@ class TriangulationEstimator(Estimator):
                 model = calibrate_force(self.scene.sensor, model, self._threshold())
             self.model_ = model
             self.simulator_ = fsr.FsrSimulator(self.scene.sensor, ("readings",), noise=False)  # readout inverse
+            # the readout inverse builds its lookup table on first use: build it here, not in predict
+            self.simulator_.loads_from_readings(np.zeros((1, fsr.N_SENSORS), dtype=np.float32))
             self.check_ = one_press_check(self.scene).prepare()
+            self.input_check_ = fsr_check(self.scene.sensor)
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        return self.predict_checked(fsr_input(X, self.scene.sensor))
+        return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         model: LoadModel = self.prepared_state("model_")
