@@ -115,11 +115,13 @@ class Classifier(Estimator):
         return labels_of(self.predict_proba_checked(x))
 
 
-def prepared(method: Callable[[Scene], Estimator]) -> Callable[[Scene], Estimator]:
-    """A registry factory (``Task.classical_methods``): ``method(scene)``, fitted (prepared)."""
+def prepared(method: Callable[..., Estimator]) -> Callable[..., Estimator]:
+    """A registry factory (``Task.classical_methods``): ``method(scene, **params)``, fitted
+    (prepared); the class it makes is its ``estimator_class``."""
 
-    def make(scene: Scene) -> Estimator:
-        return method(scene).fit()
+    def make(scene: Scene, **params: Any) -> Estimator:
+        return method(scene, **params).fit()
 
     make.__name__ = make.__qualname__ = getattr(method, "__name__", "make")
+    make.estimator_class = method  # type: ignore[attr-defined]
     return make
