@@ -115,9 +115,8 @@ class CurveLibrary:
         yy = (y * y).sum(axis=1, keepdims=True)
         gain = np.where(norms > 0, np.maximum(dots, 0.0) ** 2 / np.where(norms > 0, norms, 1.0), 0.0)
         rss = np.maximum(yy - gain, 0.0)
-        per_mat = np.full((len(y), self.n_materials), np.inf)
-        for m in range(self.n_materials):
-            per_mat[:, m] = rss[:, self.material == m].min(axis=1)
+        # templates are ordered material first (the library's meshgrid): one block per material
+        per_mat = rss.reshape(len(y), self.n_materials, -1).min(axis=2)
         return per_mat, rss.argmin(axis=1)
 
 
