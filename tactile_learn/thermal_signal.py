@@ -100,7 +100,7 @@ def _span_median(x: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarr
     """Median of every row of ``x`` (B, W) over its samples ``start <= k < stop`` (NaN where the span
     is empty): ``nanmedian`` of the span, computed on the span alone (numpy's ``nanmedian`` of a few
     rows goes through masked arrays: most of a single curve's detection time)."""
-    b, w = x.shape
+    w = x.shape[1]
     width = max(int((stop - start).max(initial=0)), 1)
     cols = start[:, None] + np.arange(width)[None, :]
     inside = (cols < stop[:, None]) & (cols < w)

@@ -40,7 +40,7 @@ def test_the_per_sensor_functions_are_the_tasks_checks() -> None:
     strips, fsr, thermal = (load_scene(n) for n in ("strips16", "fsr6", "thermal"))
     with pytest.raises(InputError, match="expected shape"):
         strips_input(np.zeros((1, 31), np.float32), strips.sensor)
-    with pytest.raises(InputError, match="12-bit ADC's full scale|ADC's full scale"):
+    with pytest.raises(InputError, match="ADC's full scale"):
         fsr_input(np.full((1, 6), 1e9, np.float32), fsr.sensor)
     lo = thermal.sensor.readout.adc_range_c[0]
     window = np.full((1, thermal.sensor.window_samples), lo, np.float32)
