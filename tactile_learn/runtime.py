@@ -86,6 +86,7 @@ class OnnxEstimator(Estimator):
                 self._check_compatible(self.scene)
             self.task_ = self._task()
             self.input_check_ = self.task_.input_check(self.scene_)  # the scene's limits, worked out once
+            self.finish_ = self.task_.prediction_finisher(self.scene_)
             self.session_ = self._session()
             self.run_ = (self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"])
         return self
@@ -235,7 +236,7 @@ class OnnxEstimator(Estimator):
         return get_task(self.task_name)
 
     def _finish(self, x: np.ndarray, result: np.ndarray) -> np.ndarray:
-        return self.task_.finish_prediction(x, result, self.scene_)
+        return self.finish_(x, result)
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
         return self.input_check_(X)

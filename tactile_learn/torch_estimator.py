@@ -44,6 +44,7 @@ class TorchEstimator(Estimator):
         if "task_" not in self.__dict__:
             self.task_ = get_task(self.task_name)
             self.input_check_ = self.task_.input_check(self.scene)
+            self.finish_ = self.task_.prediction_finisher(self.scene)
         return self
 
     @classmethod
@@ -75,7 +76,7 @@ class TorchEstimator(Estimator):
     @torch.inference_mode()
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """The network's output for ``X`` (a classifier's: probabilities)."""
-        task = self.prepared_state("task_")
+        self.prepared_state("task_")  # an unprepared estimator fails before any work
         x = self.input_check_(X)
         was_training = self.net.training
         self.net.eval()
@@ -91,4 +92,4 @@ class TorchEstimator(Estimator):
                 raw = np.concatenate(parts).astype(np.float32, copy=False)
         finally:
             self.net.train(was_training)
-        return task.finish_prediction(x, raw, self.scene)
+        return self.finish_(x, raw)

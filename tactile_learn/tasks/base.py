@@ -151,6 +151,11 @@ class Task(ABC):
         or learned, returns this): default unchanged. The fsr task appends its one-press check."""
         return prediction
 
+    def prediction_finisher(self, scene: Scene) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """:meth:`finish_prediction` for ``scene`` with its set-up done once (an estimator builds it
+        in ``prepare``): ``finisher(inputs, prediction)``."""
+        return partial(_finish, self, scene)
+
     def same_sensor(self, a: Scene, b: Scene) -> bool:
         """Whether a model trained on scene ``a`` applies to scene ``b`` as it is (default: the same
         scene digest; a task whose scenes also describe stimuli compares the sensor alone)."""
@@ -220,6 +225,10 @@ class Task(ABC):
     def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         """Training loss of the network output against the targets from ``training_batch``."""
         raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+
+def _finish(task: Task, scene: Scene, inputs: np.ndarray, prediction: np.ndarray) -> np.ndarray:
+    return task.finish_prediction(inputs, prediction, scene)
 
 
 def readable_frames(task: Task, data: EvalData) -> tuple[EvalData, dict[str, Any]]:

@@ -46,6 +46,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -175,6 +176,14 @@ class FsrTask(Task):
         from tactile_learn.fsr_check import with_one_press
 
         return with_one_press(inputs, prediction, scene)
+
+    def prediction_finisher(self, scene: Scene) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """:meth:`finish_prediction` with the scene's one-press check built once (looking it up
+        hashes the scene: at batch 1 that cost more than the network)."""
+        from tactile_learn.fsr_check import one_press_check, with_one_press
+
+        check = one_press_check(scene).prepare()
+        return partial(with_one_press, scene=scene, check=check)
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.triangulation import (
