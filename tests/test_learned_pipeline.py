@@ -123,7 +123,7 @@ def test_export_parity_card_and_runtime(model: Path, run: Path, data: Path) -> N
     net = get_task("strips").build_net(saved["size"], scene, saved["stats"])
     net.load_state_dict(saved["state_dict"])
     readings = np.load(data / "test" / "shard-00000.readings.npy")
-    expected = TorchEstimator(net, "strips", scene).predict(readings)
+    expected = TorchEstimator(net, "strips", scene).prepare().predict(readings)
     for threads in (1, 2):
         got = OnnxEstimator(model, threads=threads).prepare().predict(readings)
         assert np.abs(got - expected).max() <= PARITY_TOL * (expected.max() - expected.min())
