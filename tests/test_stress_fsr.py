@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -323,6 +323,10 @@ def test_all_zero_and_baseline_frames_are_no_contact(method: str) -> None:
 
 
 @pytest.mark.parametrize("method", CLASSICAL)
+# Hypothesis seeds its floats with constants mined from every local module imported so far, so how
+# many of these draws are saturated or mirror-symmetric (and filtered) depends on what the suite
+# imported before: a filtering health check here fails or passes with the test order, not the code
+@settings(suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 @given(
     st.one_of(st.floats(0.0, 2 * HALF), st.floats(0.0, 300.0)),
     st.integers(0, 5),
