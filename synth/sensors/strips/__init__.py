@@ -72,20 +72,21 @@ class StripSimulator(ModelSimulator):
 
     def __init__(self, scene: Scene) -> None:
         config: StripsConfig = scene.sensor
-        model = StripModel(config)
+        self.strip_model = StripModel(config)
         rasterize = any(scene.wants(o) for o in ("readings", "pressure", "field"))
-        super().__init__(model, ContactGenerator(config, model, rasterize), scene.outputs, scene.noise)
+        generator = ContactGenerator(config, self.strip_model, rasterize)
+        super().__init__(self.strip_model, generator, scene.outputs, scene.noise)
         self.scene = scene
         self.config = config
 
     @property
     def sensor(self) -> StripSensor:
-        model: StripModel = self.model  # type: ignore[assignment]
-        return model.sensor
+        return self.strip_model.sensor
 
 
 def sensor_model(config: StripsConfig) -> StripModel:
-    """The sensor model of a ``[strips]`` table (its lattice padded for the scene's contacts)."""
+    """The sensor model of a ``[strips]`` table, its lattice padded for the scene's contacts (the
+    datasets' model); ``StripModel(config, pad=0)`` has the operators of ``StripSensor(config)``."""
     return StripModel(config)
 
 

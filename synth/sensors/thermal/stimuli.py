@@ -14,13 +14,15 @@ sensor, objects, then the real-sensor quantities), so datasets keep their bytes.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from synth.errors import InputError
-from synth.materials import FAMILIES, sample_properties
+from synth.materials import FAMILIES, get_material, sample_properties
+from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.model import StimulusGenerator
 from synth.sensors.thermal.config import ThermalConfig
@@ -73,6 +75,57 @@ class Touches:
     ``onset``, ``release``; real-sensor scenes more)."""
 
     params: dict[str, np.ndarray]
+
+    #: the arrays of :meth:`from_arrays` (a user's ``.npz``): each (B,) or one value
+    FIELDS: ClassVar[dict[str, str]] = {
+        "object_c": "the object's temperature (degC)",
+        "material": "material names from synth/data/materials.toml (e.g. 'aluminium'), or the three below",
+        "k_w_mk": "the object's conductivity (W/(m K)), instead of 'material'",
+        "rho_kg_m3": "its density (kg/m^3), instead of 'material'",
+        "c_j_kgk": "its specific heat (J/(kg K)), instead of 'material'",
+        "conductance_w_m2k": "interface conductance (W/(m^2 K)), optional (default: the scene's geometric middle)",
+        "radius_mm": "contact patch radius (mm), optional (default: the scene's middle)",
+        "onset_s": "contact onset (s from the record's start), optional (default: the scene's middle)",
+        "contact_s": "contact duration (s) before release, optional (default: the scene's middle)",
+        "ambient_c": "ambient temperature (degC), optional (default: the scene's middle)",
+        "touched": "(B, P) bool: the pixels in contact, optional (default: all)",
+    }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], config: ThermalConfig) -> Touches:
+        """A stimulus from named arrays (:attr:`FIELDS`), validated; unset contact quantities take
+        the middle of the scene's ranges."""
+        cc = config.contact
+        names = optional(arrays, "material")
+        if names is not None:
+            if any(k in arrays for k in ("k_w_mk", "rho_kg_m3", "c_j_kgk")):
+                raise InputError("stimulus: give either 'material' or 'k_w_mk', 'rho_kg_m3', 'c_j_kgk', not both")
+            if names.dtype.kind != "U":
+                raise InputError(f"material: expected material names (strings), got {names.dtype}")
+            found = [get_material(str(name)) for name in np.atleast_1d(names)]
+            props = {
+                "k_w_mk": np.array([m.k_w_mk for m in found]),
+                "rho_kg_m3": np.array([m.rho_kg_m3 for m in found]),
+                "c_j_kgk": np.array([m.c_j_kgk for m in found]),
+            }
+        else:
+            props = {key: take(arrays, key) for key in ("k_w_mk", "rho_kg_m3", "c_j_kgk")}
+
+        def given(name: str, default: float) -> Any:
+            value = optional(arrays, name)
+            return default if value is None else value
+
+        return cls.from_objects(
+            config,
+            object_c=take(arrays, "object_c"),
+            **props,
+            conductance_w_m2k=given("conductance_w_m2k", float(np.sqrt(np.prod(cc.conductance_w_m2k)))),
+            radius_mm=given("radius_mm", float(np.mean(cc.radius_mm))),
+            onset_s=given("onset_s", float(np.mean(cc.onset_s))),
+            contact_s=given("contact_s", float(np.mean(cc.contact_s))),
+            ambient_c=optional(arrays, "ambient_c"),
+            touched=optional(arrays, "touched"),
+        )
 
     def __len__(self) -> int:
         return len(self.params["touched"])
