@@ -2,8 +2,9 @@
 
 - :mod:`~synth.sensors.strips.config`: the ``[strips]`` scene table;
 - :mod:`~synth.sensors.strips.layouts`: geometry, strip layers and readout channels of every layout;
-- :mod:`~synth.sensors.strips.physics`: cover mechanics, piezoresistance, readout, noise and ADC
-  (:class:`StripSensor`: every stage, and ``forward`` of a user's pressure field);
+- :mod:`~synth.sensors.strips.mechanics`: the cover's mechanics (pressure -> segment stress);
+- :mod:`~synth.sensors.strips.physics`: piezoresistance, readout, noise and ADC (:class:`StripSensor`:
+  every stage, and ``forward`` of a user's pressure field);
 - :mod:`~synth.sensors.strips.stimuli`: contacts from the shape library (:class:`ContactGenerator`);
 - :mod:`~synth.sensors.strips.sensor`: :class:`StripModel` (physics -> transduce -> noise -> adc).
 """
@@ -25,7 +26,8 @@ from synth.sensors.strips.config import (
 )
 from synth.sensors.strips.config import StripReadout as ReadoutConfig
 from synth.sensors.strips.layouts import LAYOUTS, StripGeometry, StripLayout
-from synth.sensors.strips.physics import Adc, GaussianNoise, PiezoLaw, StripArray, StripReadout, StripSensor
+from synth.sensors.strips.mechanics import StripArray
+from synth.sensors.strips.physics import Adc, GaussianNoise, PiezoLaw, StripReadout, StripSensor
 from synth.sensors.strips.sensor import StripModel, StripStimulus
 from synth.sensors.strips.stimuli import OUTPUTS, ContactGenerator, PressureField, StripContacts
 
