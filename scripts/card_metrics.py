@@ -9,13 +9,11 @@ them, under ``metrics.<name>``.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 
 from synth.io import atomic_write_json
-from tactile_learn.export import portable_path
 from tactile_learn.methods import resolve_method
+from tactile_learn.provenance import dataset_record
 from tactile_learn.runtime import card_path, read_card
 from tactile_learn.tasks import get_task
 
@@ -35,9 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.data:
         data = task.load_eval_data(args.data)
         values = task.evaluate(resolve_method(task.name, str(args.model), data.scene), data)
-        manifest = Path(args.data) / "manifest.json"
-        seed = json.loads(manifest.read_text()).get("seed") if manifest.is_file() else None
-        entry = {"data": {"path": portable_path(args.data), "seed": seed, "n_frames": len(data)}, "values": values}
+        entry = {"data": dataset_record(args.data, len(data)), "values": values}
     else:
         from synth.suite import load_suite
         from tactile_learn.suites import SUITE_SEED, evaluate_suite, suite_eval_data

@@ -16,8 +16,6 @@
 from __future__ import annotations
 
 import json
-import shlex
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -33,10 +31,11 @@ from synth.io import atomic_open, atomic_write_json, sha256_file
 from synth.scene import Scene, parse_scene
 from tactile_learn.checkpoints import build_net, load_weights, save_torch
 from tactile_learn.idle import IDLE_KEYS, measure_idle_floor
+from tactile_learn.provenance import command_line, dataset_record, portable_path
 from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
 from tactile_learn.tasks import get_task
 
-__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "to_onnx"]
+__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "portable_path", "to_onnx"]
 
 OPSET = 18
 #: max |onnx - torch| allowed, as a fraction of the torch output's range
@@ -185,42 +184,17 @@ def export(
         data = task.load_eval_data(test)
         metrics = task.evaluate(OnnxEstimator(out), data)
         card["metrics"]["heldout"] = {
-            "data": {"path": portable_path(test), "seed": _dataset_seed(test), "n_frames": len(data)},
+            "data": dataset_record(test, len(data)),
             "values": metrics,
-            "command": command or _command_line(),
+            "command": command or command_line(),
         }
         atomic_write_json(card_path(out), card)
     return card
 
 
-def portable_path(path: str | Path) -> str:
-    """``path`` as it may appear in a shipped card: relative to the working folder when inside it,
-    else only its name (a card never records a path of the machine it was made on)."""
-    p = Path(path)
-    if not p.is_absolute():
-        return p.as_posix()
-    try:
-        return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
-    except ValueError:
-        return p.name
-
-
 def _portable_paths(paths: str | list[str] | tuple[str, ...]) -> str | list[str]:
     """A run's training data: one folder, or several read as one training set."""
     return portable_path(paths) if isinstance(paths, str) else [portable_path(p) for p in paths]
-
-
-def _dataset_seed(path: str | Path) -> int | None:
-    manifest = Path(path) / "manifest.json"
-    if manifest.is_file():
-        seed = json.loads(manifest.read_text()).get("seed")
-        return int(seed) if seed is not None else None
-    return None
-
-
-def _command_line() -> str:
-    args = [portable_path(a) if Path(a).is_absolute() else a for a in sys.argv[1:]]
-    return "tactile-learn " + " ".join(shlex.quote(a) for a in args)
 
 
 def _strip_debug_info(model: Any) -> None:
