@@ -37,7 +37,7 @@ from synth.dataset import generate
 from synth.errors import ConfigError
 from synth.scene import Scene, available_scenes, load_scene
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.methods import shipped_models
+from tactile_learn.methods import shipped_cards
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.timing import time_predict
@@ -97,18 +97,12 @@ def _bench_data(task_name: str, scene: Scene | None, n: int, data: str | None) -
 def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[[], Estimator]]]:
     """(label, factory) for every shipped model of the task whose scene matches: ORT 1 and 2
     threads, and torch eager when torch and the model's weights (NAME.pt) are available."""
-    from tactile_learn.runtime import read_card
-
     variants: list[tuple[str, Callable[[], Estimator]]] = []
-    for name, path in sorted(shipped_models(task_name).items()):
-        try:
-            card = read_card(path)
-        except Exception:  # a broken card is reported by eval, not by the benchmark
-            continue
+    for name, (path, card) in sorted(shipped_cards(task_name).items()):
         if card["scene_digest"] != scene.digest and not _same_sensor(task_name, card["scene"], scene):
             continue
         for threads in (1, 2):
-            variants.append((name, partial(_onnx_model, path, threads)))
+            variants.append((name, partial(_onnx_model, path, threads, card)))
         if "thresholds" in card.get("consistency", {}):  # the checked path: flags + fallback
             variants.append((f"{name}+check", partial(_checked_model, path)))
         weights = path.with_suffix(".pt")
@@ -128,10 +122,10 @@ def _same_sensor(task_name: str, card_scene: dict[str, Any], scene: Scene) -> bo
         return False
 
 
-def _onnx_model(path: Path, threads: int) -> Estimator:
+def _onnx_model(path: Path, threads: int, card: dict[str, Any]) -> Estimator:
     from tactile_learn.runtime import OnnxEstimator
 
-    return _named(OnnxEstimator(path, threads=threads), f"onnxruntime-{threads}t")
+    return _named(OnnxEstimator(path, threads=threads, card=card), f"onnxruntime-{threads}t")
 
 
 def _checked_model(path: Path) -> Estimator:
