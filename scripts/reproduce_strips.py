@@ -11,12 +11,12 @@ other metrics) for every classical estimator, beside the paper's values.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 from synth.dataset import simulate_shard
+from synth.io import atomic_write_json
 from synth.scene import load_scene
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"n": args.n, "seed": args.seed, "rows": rows}, indent=2) + "\n")
+        atomic_write_json(args.json, {"n": args.n, "seed": args.seed, "rows": rows})
     return 0
 
 

@@ -14,8 +14,8 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
+from synth.io import atomic_write_json
 from tactile_learn.methods import resolve_method
 from tactile_learn.tasks.thermal import ThermalTask, class_names, thermal_metrics, view
 
@@ -52,7 +52,7 @@ def main() -> None:
             rows.append(row)
             print(json.dumps(row), flush=True)
     if args.json:
-        Path(args.json).write_text(json.dumps({"data": args.data, "rows": rows}, indent=2) + "\n")
+        atomic_write_json(args.json, {"data": args.data, "rows": rows})
 
 
 if __name__ == "__main__":
