@@ -48,7 +48,6 @@ EXEMPT: dict[str, tuple[str, ...]] = {
         "tactile_learn.checkpoints",
         "tactile_learn.torch_estimator",
         "tactile_learn.nets*",
-        "tactile_learn.stream",
         "tactile_learn.bench",
         "tactile_learn.sweep",
     ),

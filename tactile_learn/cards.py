@@ -2,7 +2,7 @@
 
 A card's ``metrics`` hold, besides the training run's ``validation``, one entry per held-out set:
 
-- a dataset (``{"data": {"path", "scene", "seed", "n", "n_frames"}, "values": {...}}``): written by
+- a dataset (``{"data": {"path", "scene", "seed", "n", "shard_size", "n_frames"}, "values": {...}}``): by
   ``tactile-learn export --test`` and ``scripts/card_metrics.py``;
 - a suite (``{"suite", "seed", "n_frames_per_family", "families", "mean_over_families"}``).
 
@@ -38,6 +38,8 @@ __all__ = ["RTOL", "compare_values", "heldout_sets", "verify_card"]
 #: operator sums in another order; anything larger is a real change. ``rtol=0`` asks for bit equality.
 RTOL = 1e-6
 ATOL = 1e-12
+#: ``synth.dataset.generate``'s default shard size: what a card that does not record one was made with
+DEFAULT_SHARD_SIZE = 8192
 
 
 def heldout_sets(card: dict[str, Any]) -> dict[str, dict[str, Any]]:
@@ -98,9 +100,10 @@ def _dataset_values(task_name: str, model: Path, data_entry: dict[str, Any], wor
             f"{model}: scene {scene.name!r} is not the one the card's held-out data was generated with "
             f"(digest {scene.digest[:12]} now, {str(recorded_digest)[:12]} recorded)"
         )
-    folder = workdir / f"{scene.name}-{data_entry['seed']}-{data_entry['n']}"
+    folder = workdir / f"{scene.name}-{data_entry['seed']}-{data_entry['n']}-{data_entry.get('shard_size')}"
     if not (folder / "manifest.json").is_file():  # two entries on the same set share one generation
-        generate(scene, int(data_entry["n"]), int(data_entry["seed"]), folder)
+        shard_size = int(data_entry.get("shard_size") or DEFAULT_SHARD_SIZE)  # cards before it was recorded
+        generate(scene, int(data_entry["n"]), int(data_entry["seed"]), folder, shard_size=shard_size)
     data = task.load_eval_data(folder)
     values: dict[str, Any] = task.evaluate(resolve_method(task_name, str(model), data.scene), data)
     return {"n_frames": len(data), "values": values}

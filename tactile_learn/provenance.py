@@ -38,6 +38,7 @@ def dataset_record(path: str | Path, n_frames: int) -> dict[str, Any]:
             scene_digest=meta.get("scene_digest"),
             seed=meta.get("seed"),
             n=meta.get("n"),
+            shard_size=meta.get("shard_size"),  # a shard's bytes depend on it
         )
     record["n_frames"] = n_frames
     return record
