@@ -3,8 +3,9 @@
 A card's ``metrics`` hold, besides the training run's ``validation``, one entry per held-out set:
 
 - a dataset (``{"data": {"path", "scene", "seed", "n", "shard_size", "n_frames"}, "values": {...}}``): by
-  ``tactile-learn export --test`` and ``scripts/card_metrics.py``;
-- a suite (``{"suite", "seed", "n_frames_per_family", "families", "mean_over_families"}``).
+  ``tactile-learn export --test`` and ``tactile-learn cards add --data``;
+- a suite (``{"suite", "seed", "n_frames_per_family", "families", "mean_over_families"}``): by
+  ``tactile-learn cards add --suite``.
 
 :func:`verify_card` regenerates each set from what the card names (scene, seed and size; datasets are
 generated, never shipped), evaluates the model on it with the runtime, and compares every recorded
@@ -23,15 +24,15 @@ from pathlib import Path
 from typing import Any
 
 from synth.dataset import generate
-from synth.errors import ModelError, TactileError
-from synth.io import json_ready
+from synth.errors import ConfigError, ModelError, TactileError
+from synth.io import atomic_write_json, json_ready
 from synth.scene import load_scene
 from tactile_learn.methods import resolve_method
-from tactile_learn.provenance import portable_path
-from tactile_learn.runtime import read_card
+from tactile_learn.provenance import command_line, dataset_record, portable_path
+from tactile_learn.runtime import card_path, read_card
 from tactile_learn.tasks import get_task
 
-__all__ = ["RTOL", "compare_values", "heldout_sets", "verify_card"]
+__all__ = ["RTOL", "add_metrics", "compare_values", "dataset_entry", "heldout_sets", "suite_entry", "verify_card"]
 
 #: relative tolerance of a re-measured figure (plus ``ATOL`` absolute, for figures that are zero):
 #: figures computed in float32 (e.g. the strips readings residual) move in their 7th digit when an
@@ -85,14 +86,68 @@ def compare_values(recorded: Any, now: Any, rtol: float = RTOL) -> list[dict[str
     return rows
 
 
-def _dataset_values(task_name: str, model: Path, data_entry: dict[str, Any], workdir: Path) -> dict[str, Any]:
+def dataset_entry(task_name: str, model: str | Path, data: str | Path) -> dict[str, Any]:
+    """A card's metrics entry for ``model`` on the dataset folder ``data``: what regenerates the data
+    (:func:`~tactile_learn.provenance.dataset_record`) and the task's metrics on it."""
+    task = get_task(task_name)
+    frames = task.load_eval_data(data)
+    values: dict[str, Any] = task.evaluate(resolve_method(task_name, str(model), frames.scene), frames)
+    return {"data": dataset_record(data, len(frames)), "values": values}
+
+
+def suite_entry(task_name: str, model: str | Path, suite_name: str, n: int | None, seed: int) -> dict[str, Any]:
+    """A card's metrics entry for ``model`` on a suite: per family (``n`` frames each, default the
+    suite's) and their mean."""
+    from synth.suite import load_suite
+    from tactile_learn.suites import evaluate_suite, suite_eval_data
+
+    suite = load_suite(suite_name)
+    frames = suite_eval_data(suite, n, seed)
+    report = evaluate_suite(resolve_method(task_name, str(model), suite.base), frames, task_name)
+    return {
+        "suite": suite.name,
+        "seed": seed,
+        "n_frames_per_family": {k: len(v) for k, v in frames.items()},
+        "families": report["families"],
+        "mean_over_families": report["mean_over_families"],
+    }
+
+
+def add_metrics(
+    model: str | Path,
+    name: str,
+    *,
+    data: str | Path | None = None,
+    suite: str | None = None,
+    n: int | None = None,
+    command: str | None = None,
+) -> dict[str, Any]:
+    """Measure ``model`` on a dataset folder or a suite and record it in its card under
+    ``metrics.<name>`` with ``command`` (default: this process's command line); returns the entry."""
+    if (data is None) == (suite is None):
+        raise ConfigError("cards add: give either a dataset folder (--data) or a suite (--suite)")
+    if name == "validation":
+        raise ConfigError("cards add: 'validation' is the training run's own entry; choose another --name")
+    card = read_card(model)
+    if data is not None:
+        entry = dataset_entry(card["task"], model, data)
+    else:
+        from tactile_learn.suites import SUITE_SEED
+
+        entry = suite_entry(card["task"], model, str(suite), n, SUITE_SEED)
+    card.setdefault("metrics", {})[name] = {**entry, "command": command or command_line()}
+    atomic_write_json(card_path(model), card)
+    return entry
+
+
+def _regenerated(model: Path, data_entry: dict[str, Any], workdir: Path) -> Path:
+    """The held-out dataset a card entry names, generated again in ``workdir`` (once per set)."""
     for field in ("scene", "seed", "n"):
         if data_entry.get(field) is None:
             raise ModelError(
                 f"{model}: the card's held-out data {data_entry.get('path')!r} does not record its {field} "
-                "(export --test and scripts/card_metrics.py record scene, seed and n)"
+                "(export --test and cards add record scene, seed and n)"
             )
-    task = get_task(task_name)
     scene = load_scene(str(data_entry["scene"]))
     recorded_digest = data_entry.get("scene_digest")
     if recorded_digest and recorded_digest != scene.digest:  # the shipped scene was edited since
@@ -104,35 +159,22 @@ def _dataset_values(task_name: str, model: Path, data_entry: dict[str, Any], wor
     if not (folder / "manifest.json").is_file():  # two entries on the same set share one generation
         shard_size = int(data_entry.get("shard_size") or DEFAULT_SHARD_SIZE)  # cards before it was recorded
         generate(scene, int(data_entry["n"]), int(data_entry["seed"]), folder, shard_size=shard_size)
-    data = task.load_eval_data(folder)
-    values: dict[str, Any] = task.evaluate(resolve_method(task_name, str(model), data.scene), data)
-    return {"n_frames": len(data), "values": values}
-
-
-def _suite_values(task_name: str, model: Path, entry: dict[str, Any]) -> dict[str, Any]:
-    from synth.suite import load_suite
-    from tactile_learn.suites import evaluate_suite, suite_eval_data
-
-    suite = load_suite(str(entry["suite"]))
-    per_family = set(entry.get("n_frames_per_family", {}).values())
-    n = per_family.pop() if len(per_family) == 1 else None
-    frames = suite_eval_data(suite, n, int(entry["seed"]))
-    report = evaluate_suite(resolve_method(task_name, str(model), suite.base), frames, task_name)
-    return {
-        "n_frames_per_family": {k: len(v) for k, v in frames.items()},
-        "families": report["families"],
-        "mean_over_families": report["mean_over_families"],
-    }
+    return folder
 
 
 def _verify_set(task_name: str, path: Path, entry: dict[str, Any], folder: Path, rtol: float) -> dict[str, Any]:
     recorded: dict[str, Any]
     if "suite" in entry:
-        now = _suite_values(task_name, path, entry)
-        recorded = {k: entry[k] for k in ("n_frames_per_family", "families", "mean_over_families") if k in entry}
+        per_family = set(entry.get("n_frames_per_family", {}).values())
+        n = per_family.pop() if len(per_family) == 1 else None
+        measured = suite_entry(task_name, path, str(entry["suite"]), n, int(entry["seed"]))
+        keys = ("n_frames_per_family", "families", "mean_over_families")
+        recorded = {k: entry[k] for k in keys if k in entry}
+        now = {k: measured[k] for k in keys}
     else:
-        now = _dataset_values(task_name, path, entry["data"], folder)
+        measured = dataset_entry(task_name, path, _regenerated(path, entry["data"], folder))
         recorded = {"n_frames": entry["data"].get("n_frames"), "values": entry["values"]}
+        now = {"n_frames": measured["data"]["n_frames"], "values": measured["values"]}
     rows = compare_values(recorded, now, rtol)
     differ = [r for r in rows if not r["ok"]]
     return {

@@ -29,9 +29,10 @@ from synth.dataset import simulate_shard
 from synth.errors import ModelError
 from synth.io import atomic_open, atomic_write_json, sha256_file
 from synth.scene import Scene
+from tactile_learn.cards import dataset_entry
 from tactile_learn.checkpoints import save_torch
 from tactile_learn.idle import IDLE_KEYS, measure_idle_floor
-from tactile_learn.provenance import command_line, dataset_record, portable_path
+from tactile_learn.provenance import command_line, portable_path
 from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import Task
@@ -212,13 +213,7 @@ def _add_card_extras(card: dict[str, Any], out: Path, task: Task, scene: Scene, 
 
 def _add_heldout_metrics(card: dict[str, Any], out: Path, task: Task, test: str | Path, command: str | None) -> None:
     """Metrics of the exported model on the held-out dataset ``test``, with what regenerates it."""
-    data = task.load_eval_data(test)
-    metrics = task.evaluate(OnnxEstimator(out), data)
-    card["metrics"]["heldout"] = {
-        "data": dataset_record(test, len(data)),
-        "values": metrics,
-        "command": command or command_line(),
-    }
+    card["metrics"]["heldout"] = {**dataset_entry(task.name, out, test), "command": command or command_line()}
     atomic_write_json(card_path(out), card)
 
 

@@ -3,32 +3,41 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
 
 from synth.errors import ConfigError
 from synth.io import atomic_write_json
+from tactile_learn.cli.common import positive_int
 
-HELP = "re-verify model cards: regenerate each card's held-out data and re-measure its metrics"
+HELP = "model cards: add held-out metrics to a card, or re-verify every card's metrics"
 EXAMPLES = """\
   tactile-learn cards verify                                   # every model in models/
   tactile-learn cards verify --model strips5 --json results/cards_verify.json
   tactile-learn cards verify --model models/strips16.onnx --set two_spheres
-Regenerates every held-out set a card names (scene, seed, n: generation is deterministic), evaluates
-the model on it, and prints recorded vs now for each figure that moved. Exit 1 if any figure differs
-by more than --rtol (relative)."""
+  tactile-learn cards add --model models/strips16.onnx --name two_spheres --data data/strips16-test
+  tactile-learn cards add --model models/strips16.onnx --name strips16_ood --suite strips16_ood
+verify regenerates every held-out set a card names (scene, seed, n: generation is deterministic),
+evaluates the model on it, and prints recorded vs now for each figure that moved; exit 1 if any
+figure differs by more than --rtol (relative). add measures the model on a dataset folder or a suite
+and records the metrics under metrics.NAME with the command and what regenerates the data."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("action", choices=["verify"], help="what to do with the cards")
+    parser.add_argument("action", choices=["verify", "add"], help="what to do with the cards")
     parser.add_argument(
         "--model",
         action="append",
         default=None,
         help="a shipped model's name or a .onnx path (repeatable; default: every model in models/)",
     )
-    parser.add_argument("--set", action="append", default=None, dest="sets", help="only these metrics entries")
+    parser.add_argument("--set", action="append", default=None, dest="sets", help="verify: only these entries")
+    parser.add_argument("--name", default=None, help="add: the entry's key under the card's metrics")
+    parser.add_argument("--data", default=None, help="add: a held-out dataset folder")
+    parser.add_argument("--suite", default=None, help="add: a suite name or file (metrics per family)")
+    parser.add_argument("--n", type=positive_int, default=None, help="add --suite: frames per family")
     parser.add_argument(
         "--rtol", type=float, default=None, help="relative tolerance (default: 1e-6, float32 rounding; 0: bit-exact)"
     )
@@ -72,7 +81,28 @@ def _print(report: dict[str, Any]) -> None:
             print(f"    ... {result['n_differ'] - 20} more in the JSON")
 
 
+def _add(args: argparse.Namespace) -> int:
+    from tactile_learn.cards import add_metrics
+    from tactile_learn.provenance import portable_path
+    from tactile_learn.runtime import read_card
+    from tactile_learn.tasks import get_task
+
+    if not args.model or len(args.model) != 1 or not args.name:
+        raise ConfigError("cards add: give one --model and the entry's --name")
+    model = _models(args.model)[0]
+    source = ["--data", portable_path(args.data)] if args.data else ["--suite", str(args.suite)]
+    size = ["--n", str(args.n)] if args.n else []
+    recipe = ["tactile-learn", "cards", "add", "--model", portable_path(model), "--name", args.name, *source, *size]
+    entry = add_metrics(model, args.name, data=args.data, suite=args.suite, n=args.n, command=shlex.join(recipe))
+    primary = get_task(read_card(model)["task"]).primary_metric[0]
+    values = entry.get("values") or entry["mean_over_families"]
+    print(f"{model}: metrics.{args.name}.{primary} = {values[primary]:.4f}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.action == "add":
+        return _add(args)
     from tactile_learn.cards import RTOL, verify_card
 
     reports = []

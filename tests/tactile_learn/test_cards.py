@@ -82,3 +82,23 @@ def test_a_card_that_does_not_name_its_data_scene_says_so(small_card: Path) -> N
 
 def test_an_unknown_set_name_is_an_error(small_card: Path) -> None:
     assert main(["cards", "verify", "--model", str(small_card), "--set", "nope"]) == 2
+
+
+def test_cards_add_records_a_dataset_entry_that_verify_then_reproduces(tmp_path: Path) -> None:
+    model = tmp_path / "strips5.onnx"
+    shutil.copy(MODELS / "strips5.onnx", model)
+    shutil.copy(MODELS / "strips5.json", model.with_suffix(".json"))
+    data_dir = tmp_path / "more"
+    generate(load_scene("strips5"), 32, 9, data_dir)
+    assert main(["cards", "add", "--model", str(model), "--name", "more", "--data", str(data_dir)]) == 0
+    entry = json.loads(model.with_suffix(".json").read_text())["metrics"]["more"]
+    assert entry["data"]["scene"] == "strips5" and entry["data"]["seed"] == 9 and entry["data"]["n"] == 32
+    assert entry["command"].startswith("tactile-learn cards add") and 0.9 < entry["values"]["pearson_r_mean"] <= 1
+    shutil.rmtree(data_dir)
+    assert verify_card(model, names=["more"], rtol=0)["ok"]
+
+
+def test_cards_add_refuses_two_sources_or_the_validation_key(small_card: Path, tmp_path: Path) -> None:
+    assert main(["cards", "add", "--model", str(small_card), "--name", "x", "--data", "d", "--suite", "s"]) == 2
+    assert main(["cards", "add", "--model", str(small_card), "--name", "validation", "--suite", "s"]) == 2
+    assert main(["cards", "add", "--name", "x", "--suite", "s"]) == 2  # no model
