@@ -46,6 +46,7 @@ EXEMPT: dict[str, tuple[str, ...]] = {
         "tactile_learn.train*",
         "tactile_learn.export",
         "tactile_learn.checkpoints",
+        "tactile_learn.distributed",
         "tactile_learn.torch_estimator",
         "tactile_learn.nets*",
         "tactile_learn.bench",

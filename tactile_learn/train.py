@@ -37,6 +37,7 @@ from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
 from synth.scene import Scene, load_scene
 from tactile_learn.checkpoints import MODEL, load_torch, save_torch
+from tactile_learn.distributed import TrainStep, broadcast, join_world, mean_over_ranks
 from tactile_learn.progress import progress_bar
 from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
@@ -133,43 +134,6 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
     return True
 
 
-class _TrainStep(torch.nn.Module):
-    """The task's training forward as a module's ``forward``: DDP synchronises gradients only for
-    what runs through the wrapped module's ``forward`` (a general strip net's ``train_outputs``)."""
-
-    def __init__(self, net: torch.nn.Module, task_name: str) -> None:
-        super().__init__()
-        self.net = net
-        self.task_name = task_name
-
-    def forward(self, x: torch.Tensor) -> Any:
-        return get_task(self.task_name).train_forward(self.net, x)
-
-
-def _world() -> tuple[int, int, bool]:
-    """(rank, world size, whether this call started the process group): torchrun's environment,
-    joined to a gloo process group (one already started is used as it is); (0, 1, False) without it."""
-    import torch.distributed as dist
-
-    if int(os.environ.get("WORLD_SIZE", "1")) <= 1 and not dist.is_initialized():
-        return 0, 1, False
-    started = not dist.is_initialized()
-    if started:
-        dist.init_process_group("gloo")
-    return dist.get_rank(), dist.get_world_size(), started
-
-
-def _broadcast(value: Any, world: int) -> Any:
-    """Rank 0's ``value`` on every rank."""
-    if world == 1:
-        return value
-    import torch.distributed as dist
-
-    box = [value]
-    dist.broadcast_object_list(box, src=0)
-    return box[0]
-
-
 def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
     """SHA-256 of a network's weights (names and bytes): equal digests, equal networks."""
     digest = hashlib.sha256()
@@ -184,7 +148,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
 
     Under torchrun with more than one process, data-parallel (module docstring)."""
     config.validate()
-    rank, world, started = _world()
+    rank, world, started = join_world()
     try:
         result = _train(config, resume, progress, rank, world)
         if world > 1:
@@ -296,7 +260,7 @@ def _open_run(config: TrainConfig, rank: int, world: int, resume: bool) -> _Run:
         val_unreadable=val_unreadable,
     )
     # every rank checks before any writes (rank 0 creates the folder)
-    occupied = _broadcast(run.out.exists() and any(run.out.iterdir()), world)
+    occupied = broadcast(run.out.exists() and any(run.out.iterdir()), world)
     if occupied and not resume:
         raise DataError(f"{run.out} already holds a run: pass --resume to continue it, or choose another --out")
     if resume and not run.checkpoint_path.is_file():
@@ -341,7 +305,7 @@ def _build_model(run: _Run) -> None:
         from torch.nn.parallel import DistributedDataParallel
 
         # DDP broadcasts rank 0's initial weights, then averages the gradients of every step
-        run.step_module = DistributedDataParallel(_TrainStep(run.net, config.task))
+        run.step_module = DistributedDataParallel(TrainStep(run.net, config.task))
 
 
 def _fresh_state() -> dict[str, Any]:
@@ -417,7 +381,7 @@ def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progr
     assert net is not None
     metric, higher_better = run.task.primary_metric
     val_metrics = run.task.evaluate(TorchEstimator(net, run.config.task, run.scene), run.val) if run.lead else {}
-    val_metrics = _broadcast(val_metrics, run.world)
+    val_metrics = broadcast(val_metrics, run.world)
     value = float(val_metrics[metric])
     improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
     if improved:
@@ -429,7 +393,7 @@ def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progr
         {"epoch": epoch, "train_loss": float(np.mean(losses)), "val": _scalars(val_metrics), "seconds": seconds}
     )
     if run.world > 1:
-        state["history"][-1]["train_loss"] = _mean_over_ranks(float(np.mean(losses)), run.world)
+        state["history"][-1]["train_loss"] = mean_over_ranks(float(np.mean(losses)), run.world)
     if not run.lead:
         return
     save_torch(
@@ -502,14 +466,6 @@ def _finish(run: _Run) -> dict[str, Any]:
     atomic_write_json(run.out / "metrics.json", result)
     _loss_plot(state["history"], run.out / "loss.png", run.task.primary_metric[0])
     return result
-
-
-def _mean_over_ranks(value: float, world: int) -> float:
-    import torch.distributed as dist
-
-    tensor = torch.tensor([value], dtype=torch.float64)
-    dist.all_reduce(tensor)
-    return float(tensor.item()) / world
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:
