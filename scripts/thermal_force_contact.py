@@ -35,7 +35,7 @@ from thermal_robot_protocol import robot_data, split
 
 from synth.io import atomic_write_json, json_dumps
 from synth.materials import get_material
-from synth.sensors.thermal_dynamics import channel_terms
+from synth.sensors.thermal.dynamics import channel_terms
 from tactile_learn import thermal_calibration as calibration
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings

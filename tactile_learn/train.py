@@ -73,6 +73,7 @@ class TrainConfig:
     stream_seed: int = 0
     shard_size: int = 8192
     fresh: bool = True  # a new ``stream`` samples every epoch (False: the same ones, as a dataset)
+    stream_pixels: int = 0  # thermal: simulate only this many random pixels per touch (0: all)
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -91,6 +92,8 @@ class TrainConfig:
             raise ConfigError("give either --data (a dataset folder) or --scene with --stream N (touches per epoch)")
         if bool(self.stream) != bool(self.scene):
             raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
+        if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
+            raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
 
 
 def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tuple[EvalData, float]:
@@ -229,7 +232,12 @@ def _open_run(config: TrainConfig, rank: int, world: int, resume: bool) -> _Run:
     train_set: TrainingSet | TouchStream
     if config.stream:
         train_set = TouchStream(
-            load_scene(config.scene), config.stream, config.stream_seed, config.shard_size, config.fresh
+            load_scene(config.scene),
+            config.stream,
+            config.stream_seed,
+            config.shard_size,
+            config.fresh,
+            config.stream_pixels or None,
         )
         folders: tuple[str, ...] = ()
         source = str(config.scene)
