@@ -1,5 +1,6 @@
 """Resolve a ``--method`` value to an estimator: a classical method's name, a shipped model's
-name (``models/<name>.onnx``), or the path of any ``.onnx`` model with its card."""
+name (``models/<name>.onnx``), the path of any ``.onnx`` model with its card, or trained torch
+weights (a finished run folder or a model's ``NAME.pt``: needs torch, imported only then)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from synth.errors import ConfigError, ModelError
+from synth.errors import ConfigError, ModelError, TactileError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.runtime import OnnxEstimator, read_card
@@ -70,12 +71,40 @@ def _model_card(task: str, spec: str) -> tuple[Path, dict[str, Any]] | None:
     return shipped_cards(task).get(spec)
 
 
+def _is_weights(spec: str) -> bool:
+    """``spec`` names torch weights: a ``.pt`` file or a finished (or unfinished) run folder."""
+    path = Path(spec)
+    return path.suffix == ".pt" or (path.is_dir() and any((path / f).is_file() for f in ("model.pt", "checkpoint.pt")))
+
+
+def _torch_weights(task: str, spec: str, scene: Scene, threads: int) -> Estimator:
+    """The network of a run folder or ``NAME.pt`` on ``scene`` (through the one weights loader)."""
+    try:
+        from tactile_learn.torch_estimator import TorchEstimator
+    except ImportError:
+        raise ConfigError(
+            f"--method: {spec} holds torch weights, which need torch (pip install 'tactile-learn[train]'); "
+            "export it to ONNX to run it without"
+        ) from None
+    estimator = TorchEstimator.from_checkpoint(spec, scene, threads=threads)
+    if estimator.task_name != task:
+        raise ModelError(f"{spec}: the weights are for task {estimator.task_name!r}, not {task!r}")
+    return estimator
+
+
 def model_scene(task: str, spec: str) -> Scene | None:
     """The scene a model was trained on, when ``spec`` names a model (shipped name or ``.onnx``
     path) with a readable card; ``None`` for a classical method. Errors in the card surface when
     the model is resolved."""
     if spec in get_task(task).classical_methods():
         return None
+    if _is_weights(spec):
+        try:
+            from tactile_learn.checkpoints import load_weights, weights_scene
+
+            return weights_scene(load_weights(spec))
+        except (ImportError, TactileError):  # resolve_method says what is wrong
+            return None
     try:
         found = _model_card(task, spec)
         if found is None:
@@ -93,6 +122,8 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     classical = task_obj.classical_methods()
     if spec in classical:
         return classical[spec](scene)
+    if _is_weights(spec):
+        return _torch_weights(task, spec, scene, threads)
     found = _model_card(task, spec)
     if found is None:
         raise ConfigError(

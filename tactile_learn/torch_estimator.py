@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from synth.errors import ModelError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks import get_task
@@ -48,10 +49,14 @@ class TorchEstimator(Estimator):
         from tactile_learn.checkpoints import build_net, load_weights, weights_scene
 
         saved = load_weights(source)
+        if scene is not None and scene.task != saved["task"]:
+            raise ModelError(
+                f"{source}: the weights are for task {saved['task']!r}, scene {scene.name!r} is {scene.task!r}"
+            )
         scene = scene or weights_scene(saved)
         if threads:
             torch.set_num_threads(threads)
-        label = name or (Path(source).with_suffix(".onnx").name if Path(source).is_file() else Path(source).name)
+        label = name or Path(source).name  # NAME.pt, or the run folder's name
         return cls(build_net(saved, scene), str(saved["task"]), scene, name=label, checkpoint=saved)
 
     def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:

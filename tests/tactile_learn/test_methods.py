@@ -144,3 +144,17 @@ def test_a_corrupt_model_fails_when_it_is_resolved_but_its_scene_is_still_read(t
     with pytest.raises(ModelError, match="checksum"):
         resolve_method("strips", str(model), load_scene("strips5"))
     assert model_scene("strips", str(model)) is not None  # the scene is read without the checksum
+
+
+def test_torch_weights_resolve_through_the_one_loader_and_agree_with_their_onnx_export() -> None:
+    pytest.importorskip("torch", reason="torch weights need torch")
+    scene = load_scene("strips5")
+    weights = resolve_method("strips", str(MODELS / "strips5.pt"), scene)
+    assert weights.backend == "torch" and weights.task_name == "strips"  # type: ignore[attr-defined]
+    readings = simulate_shard(scene, 8, 0, 16)["readings"]
+    onnx = resolve_method("strips", "strips5", scene)
+    np.testing.assert_allclose(weights.predict(readings), onnx.predict(readings), rtol=1e-4, atol=1e-4)
+    scene_of_weights = model_scene("strips", str(MODELS / "strips5.pt"))
+    assert scene_of_weights is not None and scene_of_weights.digest == scene.digest
+    with pytest.raises(ModelError, match="weights are for task 'strips'"):
+        resolve_method("fsr", str(MODELS / "strips5.pt"), load_scene("fsr6"))
