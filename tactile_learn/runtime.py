@@ -5,9 +5,10 @@ together (the card's SHA-256 of the ONNX file, the scene digest embedded in the 
 input and output names and shapes) and refuses a corrupt, truncated or mismatched pair with a
 :class:`~synth.errors.ModelError`. ``predict`` validates its input against the card's scene with the
 same checks as the classical estimators (shape, dtype, NaN/inf, negative or saturated readings).
+``prepare()`` loads and checks the model and opens its session, once; ``predict`` changes nothing.
 
     from tactile_learn.runtime import OnnxEstimator
-    model = OnnxEstimator("models/strips16.onnx", threads=1)
+    model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
     maps = model.predict(readings)          # (B, 32) V -> (B, 16, 16) kPa
 """
 
@@ -70,12 +71,16 @@ class OnnxEstimator(Estimator):
         verify: bool = True,
         scene: Scene | None = None,
         backend: str = "onnxruntime",
+        card: dict[str, Any] | None = None,
     ) -> None:
         self.path = path
         self.threads = threads
         self.verify = verify
         self.scene = scene
         self.backend = backend
+        #: the card as :func:`read_card` returned it, when the caller has read it already (the method
+        #: loader reads each card once); ``None``: read beside ``path``
+        self.card = card
         self.name = Path(path).name
 
     def prepare(self) -> OnnxEstimator:
@@ -103,7 +108,7 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{model}: model file not found")
         if model.stat().st_size == 0:
             raise ModelError(f"{model}: model file is empty")
-        card = read_card(model)
+        card = self.card if self.card is not None else read_card(model)
         if self.verify and sha256_file(model) != card["model_sha256"]:
             raise ModelError(
                 f"{model}: checksum differs from its card's: the file is corrupt or belongs to another card"
