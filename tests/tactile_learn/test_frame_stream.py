@@ -18,8 +18,9 @@ from tactile_learn.fsr_check import JOINT_STARTS_MAX, one_press_check
 from tactile_learn.idle import IdleGate, idle_scene, measure_idle_floor
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
+from tests.paths import REPO_ROOT
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
+MODELS = REPO_ROOT / "models"
 
 
 class CountingModel(OnnxEstimator):

@@ -14,8 +14,9 @@ from synth.sensors.strips import Adc, GaussianNoise, StripReadout
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.skins import SkinReconstructor, strip_groups
+from tests.paths import REPO_ROOT
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
+MODELS = REPO_ROOT / "models"
 
 
 class CountingModel(OnnxEstimator):

@@ -9,7 +9,6 @@ import math
 import os
 from collections.abc import Callable
 from functools import cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,10 +27,11 @@ from tactile_learn.estimators.classical.triangulation import (
     triangulate,
 )
 from tactile_learn.runtime import OnnxEstimator
+from tests.paths import REPO_ROOT
 
 pytestmark = pytest.mark.stress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO_ROOT
 ONNX_MODELS = sorted(p.name for p in (ROOT / "models").glob("fsr*.onnx"))
 #: a contact rotated by 120 degrees about the film's centre: sensor i reads what sensor PERM[i]
 #: read before (S0 -> S1 -> S2 -> S0 at the corners, S3 -> S5 -> S4 -> S3 at the midpoints)

@@ -40,10 +40,11 @@ from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_recordings import Touch, read_recordings, write_recordings
+from tests.paths import REPO_ROOT
 
 pytestmark = pytest.mark.stress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO_ROOT
 ONNX_MODELS = sorted(p.name for p in (ROOT / "models").glob("thermal*.onnx"))
 LIBRARY = resolve_materials(())
 
