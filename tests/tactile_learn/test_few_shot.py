@@ -97,13 +97,12 @@ def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> 
     """Recordings as a user writes them (force column, labels): both few-shot methods train on one
     set of simulated touches and classify another (a different seed) by more than chance; the
     leave-one-out check runs on the labelled touches alone and is a fraction."""
-    from tests.tactile_learn.test_thermal_real import robot_scene, robot_touches
-
     from synth.config import replace
     from tactile_learn.cli import main
     from tactile_learn.tasks.thermal import ThermalTask
     from tactile_learn.thermal_adapt import write_scene
     from tactile_learn.thermal_recordings import write_recordings
+    from tests.tactile_learn.test_thermal_real import robot_scene, robot_touches
 
     scene = robot_scene()
     heated = dataclasses.replace(scene, sensor=replace(scene.sensor, "channels", ["heated"]))  # type: ignore[arg-type]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.tactile_learn.calibration.test_capacitive_calibration import true_table
 
 from synth.dataset import simulate_shard
 from synth.scene import Scene
@@ -14,6 +13,7 @@ from tactile_learn.contact_metrics import contact_metrics, separation
 from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator, bicubic_matrix
 from tactile_learn.estimators.classical.contact_shapes import contact_shapes, moments
 from tests.capacitive_scenes import tiny_capacitive_scene
+from tests.tactile_learn.calibration.test_capacitive_calibration import true_table
 
 METHODS = (BicubicEstimator, DeconvolutionEstimator)
 
