@@ -67,20 +67,61 @@ def series_terms(y_max: float) -> int:
     return _MAX_TERMS
 
 
-def _g(y: np.ndarray, small: np.ndarray) -> np.ndarray:
-    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0``, with the series
-    where ``small`` (``|y| < _SERIES_RADIUS``: the quotient cancels there; ``g(0) = 2 / sqrt(pi)``),
-    each element once (:func:`~synth.sensors.thermal.phi` evaluates both forms everywhere)."""
-    with np.errstate(divide="ignore", invalid="ignore"):  # y = 0 (padding): replaced below
-        out = (1.0 - special.erfcx(y)) / y
-    if small.any():
-        ys = y[small]
-        acc = np.zeros_like(ys)
-        for coef in _G_SERIES[::-1]:
-            acc = acc * ys + coef
-        out[small] = acc
-    return out
+def _g_series(y: np.ndarray) -> np.ndarray:
+    """``g(y) = (1 - erfcx(y)) / y`` by its power series (``|y| < _SERIES_RADIUS``: the quotient
+    cancels there)."""
+    acc = np.zeros_like(y)
+    for coef in _G_SERIES[::-1]:
+        acc = acc * y + coef
+    return acc
 
+
+def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``Re(w phi(p, s^2))`` (rows, samples) for one root per row: real ``p <= 0`` with real ``w``,
+    or complex ``p`` (``Re p < 0``) with complex ``w``, at ``s = sqrt(tau) >= 0``.
+
+    ``phi = (erfcx(y) - 1) / p`` with ``y = -p s``: the reference's ``s (1 - erfcx(y)) / y`` is the
+    same number (to rounding), and dividing the row's weight by ``p`` once replaces a division by
+    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). ``erfcx`` is
+    evaluated only where ``|y| >= _SERIES_RADIUS``: below it (and at the padding's ``s = 0``) the
+    series of ``g`` takes over, so the complex ``erfcx`` (~200 ns each) runs only on the samples
+    that keep its value (scipy's ``erfcx`` ufunc with ``where=`` on complex input crashed here,
+    scipy 1.17: a gather and a scatter instead).
+    """
+    size = np.abs(p)
+    y = -p[:, None] * s
+    # |y| < radius where s < radius / |p|; s = 0 (padding, or a release at the onset): phi = 0
+    small = s < (_SERIES_RADIUS / np.maximum(size, 1e-300))[:, None]
+    # a root at 0 is always "small" (its limit is infinite), so the weight over p is never used there
+    wp = w / np.where(size > 0, p, 1.0)
+    if small.all():
+        excess = np.zeros(y.shape)
+    elif not small.any():
+        excess = _real_part(wp, special.erfcx(y) - 1.0)
+    else:
+        at = ~small
+        ex = np.zeros_like(y)
+        ex[at] = special.erfcx(y[at]) - 1.0
+        excess = _real_part(wp, ex)
+    near = small & (s > 0)
+    if near.any():
+        rows, cols = np.nonzero(near)
+        sn = s[rows, cols]
+        excess[rows, cols] = _real_part(w[rows], _g_series(y[rows, cols])) * sn
+    return excess
+
+
+def _real_part(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``Re(a b)`` of a per-row factor ``a`` (rows,) and ``b`` (rows, ...) or (n,), without the
+    complex product's imaginary half."""
+    a2 = a[:, None] if b.ndim == 2 else a
+    if np.iscomplexobj(a2):
+        return a2.real * b.real - a2.imag * b.imag
+    return a2 * b.real if np.iscomplexobj(b) else a2 * b
+
+
+#: terms for each reach bin (series_terms is a Python loop: once here, not per block)
+_BIN_TERMS = {high: series_terms(high) for high in _REACH_BINS}
 
 #: pixels per block of :func:`record_excess`: its temporaries (pixels x samples) stay in cache
 _BLOCK_ROWS = 256
@@ -107,11 +148,13 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
             if not len(rows):
                 continue
             sr = s[rows]
-            terms = min(n_terms, series_terms(high))
-            acc = np.broadcast_to(coef[terms - 1, rows, None], sr.shape).copy()
+            terms = min(n_terms, _BIN_TERMS[high])
+            # the rows' coefficients gathered once (a gather per term cost as much as the Horner step)
+            row_coef = coef[:terms, rows, None]
+            acc = np.broadcast_to(row_coef[terms - 1], sr.shape).copy()
             for m in range(terms - 2, -1, -1):
                 acc *= sr
-                acc += coef[m, rows, None]
+                acc += row_coef[m]
             acc *= sr
             total[rows] += acc
     # a complex root's conjugate (the cubic's coefficients are real) carries the conjugate weight
@@ -122,23 +165,14 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     for j in range(r.shape[1]):
         real = ~series[:, j] & (r[:, j].imag == 0)
         other = ~series[:, j] & ~real & ~(paired[:, j] & (r[:, j].imag < 0))
-        for kind, chosen in (("real", real), ("complex", other)):
+        for chosen, is_real in ((real, True), (other, False)):
             if not chosen.any():
                 continue
             every = bool(chosen.all())  # the common case: a slice, not a gather and a scatter
             pick: slice | np.ndarray = slice(None) if every else np.flatnonzero(chosen)
-            sr = s[pick]
-            # phi(p, tau) = sqrt(tau) g(-p sqrt(tau)); |y| < radius where sqrt(tau) < radius / |p|
-            small = sr < (_SERIES_RADIUS / np.maximum(size[pick, j], 1e-300))[:, None]
-            if kind == "real":
-                g = _g(-r[pick, j].real[:, None] * sr, small)  # y >= 0: Re p <= 0
-                part = w[pick, j].real[:, None] * g
-            else:
-                g = _g(-r[pick, j, None] * sr, small)
-                wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
-                part = wj.real[:, None] * g.real - wj.imag[:, None] * g.imag  # Re(w g)
-            part *= sr
-            total[pick] += part
+            p = r[pick, j]
+            wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
+            total[pick] += _root_part(p.real if is_real else p, wj.real if is_real else wj, s[pick])
     return total
 
 
