@@ -157,7 +157,9 @@ def _direct_roots(a: np.ndarray) -> np.ndarray:
     """Roots (..., 3) of ``q^3 + a1 q^2 + a2 q + a3`` (real ``a`` (..., 3), ``a3 != 0``) in closed
     form: one real root (Cardano's, or the trigonometric form when all three are real), the other
     two from Vieta's relations by whichever of the two forms does not cancel."""
-    a1, a2, a3 = a[..., 0], a[..., 1], a[..., 2]
+    batch = a.shape[:-1]
+    a = a.reshape(-1, 3)  # flat: the rare three-real-roots case is filled in by index
+    a1, a2, a3 = a[:, 0], a[:, 1], a[:, 2]
     shift = a1 / 3.0  # q = t - shift: t^3 + P t + Q = 0
     pp = a2 - a1 * shift
     qq = a3 - shift * a2 + 2.0 * shift**3
@@ -184,7 +186,7 @@ def _direct_roots(a: np.ndarray) -> np.ndarray:
     near = prod / np.where(far != 0, far, 1.0)
     r2 = np.where(d < 0, half + 1j * root_d, far)
     r3 = np.where(d < 0, half - 1j * root_d, near)
-    return np.stack([r1 + 0j, r2, r3], axis=-1)
+    return np.stack([r1 + 0j, r2, r3], axis=-1).reshape(*batch, 3)
 
 
 def _min_gap(r: np.ndarray) -> np.ndarray:
