@@ -28,11 +28,21 @@ readings after noise and the 0.01 K ADC are byte-identical in practice (checked 
 the shipped scenes). float32 was measured for the Horner step: it saves little (the step is a
 small share of the time) and moves the ADC's rounding, so it is not used.
 
-What is left (``thermal`` scene, CPU time per touch, one busy core): ~300 us, of which the
-complex ``erfcx`` of metals' pairs (~530 evaluations, |y| around 2) ~60-70 us, the real ``erfcx``
-~30 us, the series ~40 us, the readout's normal draws (the same stream as before) ~50 us, the
-roots (``numpy.linalg.eigvals``, 3 x 3 per pixel) ~20 us, and gathers, scatters and the recovery
-the rest. The whole-record path spends ~3,000-4,000 us.
+What is left (``thermal`` scene, 1024-touch chunks, CPU time per touch on a shared 2-core machine:
+~270-300 us in all, shares from a profile): the complex ``erfcx`` of metals' pairs (~460
+evaluations at 110-200 ns each, about a third; evaluated only where ``|y| >= 0.1``: the padding
+and the samples the series replaces are skipped), the readout's normal draws (the same stream,
+~10 ns each, about a sixth), the folded series (Horner, 19-37 terms on the samples of pixels with
+series roots, about an eighth), the real ``erfcx`` (~5 %), the roots (closed form, ~1 us per pixel
+where LAPACK's 3 x 3 ``eigvals`` took ~2.5 us; ~3 %), and gathers, scatters and the recovery the
+rest. The whole-record path spends ~3,000-4,000 us. Measured and not kept: finer or coarser reach
+bins and other block sizes (no difference beyond the machine's noise). Not done, with the reason:
+a cheaper complex ``erfcx`` in numpy. The metals' arguments are close to the real axis of the
+Faddeeva function (``w(i y)``), where exact-to-rounding forms (Taylor steps from tabulated nodes,
+Weideman's rational form, continued fractions) need, by our estimate (not built), 15-40 complex
+operations per value, each a
+numpy pass of 2-4 ns a value: no cheaper than scipy's compiled evaluation; scipy's ``erfcx`` with
+``where=`` crashed on complex input (scipy 1.17), so skipped samples are gathered out instead.
 """
 
 from __future__ import annotations
