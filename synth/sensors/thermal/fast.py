@@ -40,9 +40,9 @@ bins and other block sizes (no difference beyond the machine's noise). Not done,
 a cheaper complex ``erfcx`` in numpy. The metals' arguments are close to the real axis of the
 Faddeeva function (``w(i y)``), where exact-to-rounding forms (Taylor steps from tabulated nodes,
 Weideman's rational form, continued fractions) need, by our estimate (not built), 15-40 complex
-operations per value, each a
-numpy pass of 2-4 ns a value: no cheaper than scipy's compiled evaluation; scipy's ``erfcx`` with
-``where=`` crashed on complex input (scipy 1.17), so skipped samples are gathered out instead.
+operations per value, each a numpy pass of 2-4 ns a value: no cheaper than scipy's compiled
+evaluation. scipy's ``erfcx`` with ``where=`` crashed on complex input (scipy 1.17), so the
+skipped samples are gathered out instead.
 """
 
 from __future__ import annotations
