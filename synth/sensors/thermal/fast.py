@@ -28,11 +28,21 @@ readings after noise and the 0.01 K ADC are byte-identical in practice (checked 
 the shipped scenes). float32 was measured for the Horner step: it saves little (the step is a
 small share of the time) and moves the ADC's rounding, so it is not used.
 
-What is left (``thermal`` scene, CPU time per touch, one busy core): ~300 us, of which the
-complex ``erfcx`` of metals' pairs (~530 evaluations, |y| around 2) ~60-70 us, the real ``erfcx``
-~30 us, the series ~40 us, the readout's normal draws (the same stream as before) ~50 us, the
-roots (``numpy.linalg.eigvals``, 3 x 3 per pixel) ~20 us, and gathers, scatters and the recovery
-the rest. The whole-record path spends ~3,000-4,000 us.
+What is left (``thermal`` scene, 1024-touch chunks, CPU time per touch on a shared 2-core machine:
+~270-300 us in all, shares from a profile): the complex ``erfcx`` of metals' pairs (~460
+evaluations at 110-200 ns each, about a third; evaluated only where ``|y| >= 0.1``: the padding
+and the samples the series replaces are skipped), the readout's normal draws (the same stream,
+~10 ns each, about a sixth), the folded series (Horner, 19-37 terms on the samples of pixels with
+series roots, about an eighth), the real ``erfcx`` (~5 %), the roots (closed form, ~1 us per pixel
+where LAPACK's 3 x 3 ``eigvals`` took ~2.5 us; ~3 %), and gathers, scatters and the recovery the
+rest. The whole-record path spends ~3,000-4,000 us. Measured and not kept: finer or coarser reach
+bins and other block sizes (no difference beyond the machine's noise). Not done, with the reason:
+a cheaper complex ``erfcx`` in numpy. The metals' arguments are close to the real axis of the
+Faddeeva function (``w(i y)``), where exact-to-rounding forms (Taylor steps from tabulated nodes,
+Weideman's rational form, continued fractions) need, by our estimate (not built), 15-40 complex
+operations per value, each a numpy pass of 2-4 ns a value: no cheaper than scipy's compiled
+evaluation. scipy's ``erfcx`` with ``where=`` crashed on complex input (scipy 1.17), so the
+skipped samples are gathered out instead.
 """
 
 from __future__ import annotations
@@ -67,20 +77,63 @@ def series_terms(y_max: float) -> int:
     return _MAX_TERMS
 
 
-def _g(y: np.ndarray, small: np.ndarray) -> np.ndarray:
-    """``g(y) = (1 - erfcx(y)) / y`` for real ``y >= 0`` or complex ``Re y >= 0``, with the series
-    where ``small`` (``|y| < _SERIES_RADIUS``: the quotient cancels there; ``g(0) = 2 / sqrt(pi)``),
-    each element once (:func:`~synth.sensors.thermal.phi` evaluates both forms everywhere)."""
-    with np.errstate(divide="ignore", invalid="ignore"):  # y = 0 (padding): replaced below
-        out = (1.0 - special.erfcx(y)) / y
-    if small.any():
-        ys = y[small]
-        acc = np.zeros_like(ys)
-        for coef in _G_SERIES[::-1]:
-            acc = acc * ys + coef
-        out[small] = acc
-    return out
+def _g_series(y: np.ndarray) -> np.ndarray:
+    """``g(y) = (1 - erfcx(y)) / y`` by its power series (``|y| < _SERIES_RADIUS``: the quotient
+    cancels there)."""
+    acc = np.zeros_like(y)
+    for coef in _G_SERIES[::-1]:
+        acc = acc * y + coef
+    return acc
 
+
+def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``Re(w phi(p, s^2))`` (rows, samples) for one root per row: real ``p <= 0`` with real ``w``,
+    or complex ``p`` (``Re p < 0``) with complex ``w``, at ``s = sqrt(tau) >= 0``.
+
+    ``phi = (erfcx(y) - 1) / p`` with ``y = -p s``: the reference's ``s (1 - erfcx(y)) / y`` is the
+    same number (to rounding), and dividing the row's weight by ``p`` once replaces a division by
+    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). ``erfcx`` is
+    evaluated only where ``|y| >= _SERIES_RADIUS``: below it (and at the padding's ``s = 0``) the
+    series of ``g`` takes over, so the complex ``erfcx`` (~200 ns each) runs only on the samples
+    that keep its value (scipy's ``erfcx`` ufunc with ``where=`` on complex input crashed here,
+    scipy 1.17: a gather and a scatter instead).
+    """
+    size = np.abs(p)
+    y = -p[:, None] * s
+    # |y| < radius where s < radius / |p|; s = 0 (padding, or a release at the onset): phi = 0
+    small = s < (_SERIES_RADIUS / np.maximum(size, 1e-300))[:, None]
+    # a root at 0 is always "small" (its limit is infinite), so the weight over p is never used there
+    wp = w / np.where(size > 0, p, 1.0)
+    if small.all():
+        excess = np.zeros(y.shape)
+    elif not small.any() or not np.iscomplexobj(y):
+        # the real erfcx (~10 ns) costs less than a gather and a scatter: everywhere, the series
+        # overwrites below (at s = 0 it gives erfcx(0) - 1 = 0 exactly, as phi(p, 0) = 0)
+        excess = _real_part(wp, special.erfcx(y) - 1.0)
+    else:
+        at = ~small
+        ex = np.zeros_like(y)
+        ex[at] = special.erfcx(y[at]) - 1.0
+        excess = _real_part(wp, ex)
+    near = small & (s > 0)
+    if near.any():
+        rows, cols = np.nonzero(near)
+        sn = s[rows, cols]
+        excess[rows, cols] = _real_part(w[rows], _g_series(y[rows, cols])) * sn
+    return excess
+
+
+def _real_part(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``Re(a b)`` of a per-row factor ``a`` (rows,) and ``b`` (rows, ...) or (n,), without the
+    complex product's imaginary half."""
+    a2 = a[:, None] if b.ndim == 2 else a
+    if np.iscomplexobj(a2):
+        return a2.real * b.real - a2.imag * b.imag
+    return a2 * b.real if np.iscomplexobj(b) else a2 * b
+
+
+#: terms for each reach bin (series_terms is a Python loop: once here, not per block)
+_BIN_TERMS = {high: series_terms(high) for high in _REACH_BINS}
 
 #: pixels per block of :func:`record_excess`: its temporaries (pixels x samples) stay in cache
 _BLOCK_ROWS = 256
@@ -95,11 +148,18 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     if series.any():
         row_reach = np.where(series, reach, 0.0).max(axis=1)
         n_terms = series_terms(float(row_reach.max()))
-        # real coefficients of the folded series: b_m = a_m Re sum_(series roots) w (-p)^m
-        powers = np.where(series, w, 0.0)[:, :, None] * np.cumprod(
-            np.concatenate([np.ones((len(r), 3, 1)), np.repeat(-r[:, :, None], n_terms - 1, axis=2)], axis=2), axis=2
-        )
-        coef = _SERIES_A[:n_terms, None] * powers.real.sum(axis=1).T  # (terms, rows)
+        # real coefficients of the folded series: b_m = a_m Re sum_(series roots) w (-p)^m, over
+        # the series roots only (about half of them), grouped by row (nonzero is row-major)
+        row_of, root_of = np.nonzero(series)
+        powers = np.empty((len(row_of), n_terms), dtype=np.complex128)
+        powers[:, 0] = 1.0
+        powers[:, 1:] = -r[row_of, root_of, None]
+        np.cumprod(powers, axis=1, out=powers)
+        ws = w[row_of, root_of, None]
+        parts = ws.real * powers.real - ws.imag * powers.imag  # Re(w (-p)^m)
+        starts = np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]])
+        coef = np.zeros((n_terms, len(r)))
+        coef[:, row_of[starts]] = (_SERIES_A[:n_terms] * np.add.reduceat(parts, starts, axis=0)).T
         low = -1.0  # a root at 0 (the seed's G = k_s = 0) reaches 0
         for high in _REACH_BINS:  # rows that reach less need fewer terms
             rows = np.flatnonzero(series.any(axis=1) & (row_reach > low) & (row_reach <= high))
@@ -107,11 +167,13 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
             if not len(rows):
                 continue
             sr = s[rows]
-            terms = min(n_terms, series_terms(high))
-            acc = np.broadcast_to(coef[terms - 1, rows, None], sr.shape).copy()
+            terms = min(n_terms, _BIN_TERMS[high])
+            # the rows' coefficients gathered once (a gather per term cost as much as the Horner step)
+            row_coef = coef[:terms, rows, None]
+            acc = np.broadcast_to(row_coef[terms - 1], sr.shape).copy()
             for m in range(terms - 2, -1, -1):
                 acc *= sr
-                acc += coef[m, rows, None]
+                acc += row_coef[m]
             acc *= sr
             total[rows] += acc
     # a complex root's conjugate (the cubic's coefficients are real) carries the conjugate weight
@@ -122,23 +184,14 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     for j in range(r.shape[1]):
         real = ~series[:, j] & (r[:, j].imag == 0)
         other = ~series[:, j] & ~real & ~(paired[:, j] & (r[:, j].imag < 0))
-        for kind, chosen in (("real", real), ("complex", other)):
+        for chosen, is_real in ((real, True), (other, False)):
             if not chosen.any():
                 continue
             every = bool(chosen.all())  # the common case: a slice, not a gather and a scatter
             pick: slice | np.ndarray = slice(None) if every else np.flatnonzero(chosen)
-            sr = s[pick]
-            # phi(p, tau) = sqrt(tau) g(-p sqrt(tau)); |y| < radius where sqrt(tau) < radius / |p|
-            small = sr < (_SERIES_RADIUS / np.maximum(size[pick, j], 1e-300))[:, None]
-            if kind == "real":
-                g = _g(-r[pick, j].real[:, None] * sr, small)  # y >= 0: Re p <= 0
-                part = w[pick, j].real[:, None] * g
-            else:
-                g = _g(-r[pick, j, None] * sr, small)
-                wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
-                part = wj.real[:, None] * g.real - wj.imag[:, None] * g.imag  # Re(w g)
-            part *= sr
-            total[pick] += part
+            p = r[pick, j]
+            wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
+            total[pick] += _root_part(p.real if is_real else p, wj.real if is_real else wj, s[pick])
     return total
 
 
@@ -193,7 +246,10 @@ def _record_block(
     curve += v0[:, None]
     buffer = np.empty((b, n_t + 1))  # the last column takes the padding's writes
     buffer[:, :n_t] = v0[:, None]
-    np.put_along_axis(buffer, np.where(inside, idx, n_t), curve[:, :-1], axis=1)
+    # scatters through the flat buffer (put_along_axis builds broadcast index tuples: ~2x the cost)
+    flat = buffer.reshape(-1)
+    row_start = np.arange(b)[:, None] * (n_t + 1)
+    flat[row_start + np.where(inside, idx, n_t)] = curve[:, :-1]
     after = n_t - stop
     if after.max(initial=0) > 0:
         cols_r = np.arange(int(after.max()))
@@ -202,5 +258,5 @@ def _record_block(
         dt = padded_t[np.minimum(idx_r, n_t)] - release[:, None]
         dt[~valid] = 0.0
         rec = recovery_excess(dt, curve[:, -1:], source[:, None], cap[:, None], loss[:, None])
-        np.put_along_axis(buffer, np.where(valid, idx_r, n_t), rec, axis=1)
+        flat[row_start + np.where(valid, idx_r, n_t)] = rec
     return buffer[:, :n_t]

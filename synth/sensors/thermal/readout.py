@@ -21,12 +21,21 @@ class Readout:
         out += clean
         return out
 
-    def adc(self, temperature: np.ndarray) -> np.ndarray:
+    def add_noise(self, clean: np.ndarray, scratch: np.ndarray, rng: np.random.Generator) -> None:
+        """:meth:`noise` in place: ``clean`` gets the noise (the same draws and the same bytes:
+        ``clean + noise_k z`` is ``noise_k z + clean`` exactly), ``scratch`` (as ``clean``) takes
+        the draws, so a loop over blocks allocates nothing per block."""
+        rng.standard_normal(out=scratch)  # fills in C order: the stream of standard_normal(shape)
+        scratch *= self.config.noise_k
+        clean += scratch
+
+    def adc(self, temperature: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Quantised and clipped readings; ``out`` (may be ``temperature`` itself) takes them."""
         lo, hi = self.config.adc_range_c
         step = self.config.adc_step_k
         if step <= 0:
-            return np.clip(temperature, lo, hi)
-        out = temperature / step
+            return np.clip(temperature, lo, hi, out=out)
+        out = np.divide(temperature, step, out=out)
         np.round(out, out=out)
         out *= step
         return np.clip(out, lo, hi, out=out)

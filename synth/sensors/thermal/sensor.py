@@ -60,9 +60,14 @@ class ThermalModel(SensorModel[Touches]):
         """Every pixel's temperature (degC) over the record, (B, P, R) float64."""
         if self.config.dynamic:
             return self.channels(stimulus)[0]
-        d = stimulus.params
-        n, p = d["touched"].shape
+        n, p = stimulus["touched"].shape
         out = np.empty((n, p, len(self.time_s)))
+        self._contact_into(stimulus, out)
+        return out
+
+    def _contact_into(self, stimulus: Touches, out: np.ndarray) -> None:
+        """The seed model's temperatures (B, P, R) written into ``out``."""
+        d = stimulus.params
         # pixels touching nothing sit at their steady state T_amb + Q/G
         steady = d["ambient"][:, None] + d["heater"] / d["loss"]
         out[:] = steady[..., None]
@@ -79,8 +84,8 @@ class ThermalModel(SensorModel[Touches]):
             )
             excess = touch_excess if self.reference else record_excess
             v = excess(self.time_s, model, d["onset"][sel], d["release"][sel])
-            out[sel] = d["object_c"][sel][:, None] + v
-        return out
+            v += d["object_c"][sel][:, None]  # in place: the same sum as object_c + v
+            out[sel] = v
 
     def transduce(self, physical: np.ndarray, stimulus: Touches) -> np.ndarray:
         return physical  # a thermistor reads its own temperature (its lags are in the physics)
@@ -95,15 +100,23 @@ class ThermalModel(SensorModel[Touches]):
 
     def forward(self, stimulus: Touches, rng: np.random.Generator | None = None) -> np.ndarray:
         """As :meth:`SensorModel.forward`, a few touches at a time on the seed's fast path: blocks
-        of ~32 touches keep the (touches, P, R) float64 temporaries in cache, and the noise of
-        consecutive blocks is the same stream as one draw for all (the same bytes)."""
+        of ~60 touches keep the (touches, P, R) float64 temporaries in cache, and the noise of
+        consecutive blocks is the same stream as one draw for all (the same bytes). Every stage
+        writes into the output's block (one scratch array for the noise draws): no per-block
+        allocation of a few MB (fresh pages: their faults cost about as much as the arithmetic)
+        and no copy of the block into the output."""
         if self.config.dynamic or self.reference:
             return super().forward(stimulus, rng)
         n, p = stimulus["touched"].shape
         out = np.empty((n, p, len(self.time_s)))
         block = max(1, _READOUT_BLOCK // max(1, p * len(self.time_s)))
+        scratch = np.empty((min(n, block), p, len(self.time_s))) if rng is not None else None
         for start in range(0, n, block):
-            out[start : start + block] = super().forward(stimulus.take(slice(start, start + block)), rng)
+            dest = out[start : start + block]
+            self._contact_into(stimulus.take(slice(start, start + block)), dest)  # transduce: identity
+            if rng is not None and scratch is not None:
+                self.readout.add_noise(dest, scratch[: len(dest)], rng)
+                self.readout.adc(dest, out=dest)
         return out
 
     def reading_spec(self) -> ArraySpec:
