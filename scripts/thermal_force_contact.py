@@ -4,7 +4,7 @@ the recorder's noise white? (issue 11's calibration floor: residual <= 3 noise s
     python scripts/thermal_force_contact.py --label R_1 --json results/thermal_force_contact.json
 
 1. The labelled session's touches are fitted twice with the calibration's model and multi-start
-   solver (``tactile_learn.thermal_calibration``): as calibrated (a contact that builds up over a
+   solver (``tactile_learn.calibration.thermal_calibration``): as calibrated (a contact that builds up over a
    ramp, then holds), and with a contact that follows the recorded force: the build-up is the sum
    of step contacts weighted by the increments of ``w(t) = (F(t + shift) / F_plateau)^k`` (from the
    first touch; ``k`` and ``shift`` fitted, the ramp dropped), so the conductance rises and falls
@@ -36,7 +36,7 @@ from thermal_robot_protocol import robot_data, split
 from synth.io import atomic_write_json, json_dumps
 from synth.materials import get_material
 from synth.sensors.thermal.dynamics import channel_terms
-from tactile_learn import thermal_calibration as calibration
+from tactile_learn.calibration import thermal_calibration as calibration
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings
 from tactile_learn.timing import timed
