@@ -1,4 +1,4 @@
-"""The general strip network's classical base (``base = "law"``): the network starts from the
+"""The general strip network's classical base (sizes ``*_law``): the network starts from the
 classical intersection estimate itself, and its deployed (exported) form computes the same map."""
 
 from __future__ import annotations
@@ -30,15 +30,11 @@ def frames() -> dict[str, np.ndarray]:
     return simulate_shard(load_scene("strips5"), 11, 0, 200)
 
 
-def _net(frames: dict[str, np.ndarray], base: str | None) -> GeneralStripNet:
+def _net(frames: dict[str, np.ndarray], size: str) -> GeneralStripNet:
     scene = load_scene("strips5")
     stats = input_stats(frames["readings"], frames["pressure"], scene)
-    if base is None:
-        stats.pop("base")
-    else:
-        stats["base"] = base
     torch.manual_seed(0)
-    net = build_strip_net("small", scene, stats)
+    net = build_strip_net(size, scene, stats)
     assert isinstance(net, GeneralStripNet)
     return net.eval()
 
@@ -62,8 +58,8 @@ def test_new_networks_start_from_the_classical_estimate(frames: dict[str, np.nda
     readings = frames["readings"].astype(np.float32)
     classical = IntersectionEstimator(load_scene("strips5"), noise_floor=0.0).predict(readings)
     with torch.inference_mode():
-        law = _net(frames, "law")(torch.from_numpy(readings)).numpy()
-        linear = _net(frames, None)(torch.from_numpy(readings)).numpy()
+        law = _net(frames, "small_law")(torch.from_numpy(readings)).numpy()
+        linear = _net(frames, "small")(torch.from_numpy(readings)).numpy()
     loaded = classical.reshape(len(classical), -1).max(axis=1) > 1.0
     # equal up to the built head's small positive mass (softplus of its -1 bias) and the noise-level
     # floor on the network's frame total, which the law's slope 1 / (1 - share)^2 amplifies ~10x at
@@ -74,9 +70,9 @@ def test_new_networks_start_from_the_classical_estimate(frames: dict[str, np.nda
     assert np.median(np.abs(law - classical)[loaded]) < 0.01 * classical[loaded].max()
 
 
-@pytest.mark.parametrize("base", ["law", None])
-def test_the_deployed_form_computes_the_trained_map(frames: dict[str, np.ndarray], base: str | None) -> None:
-    net = _net(frames, base)
+@pytest.mark.parametrize("size", ["small_law", "small", "tiny_law"])
+def test_the_deployed_form_computes_the_trained_map(frames: dict[str, np.ndarray], size: str) -> None:
+    net = _net(frames, size)
     with torch.no_grad():  # a trained-looking head: the base map's rescaling matters everywhere
         for p in net.head.parameters():
             p.normal_(0.0, 0.3)
