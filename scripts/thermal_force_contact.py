@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from thermal_robot_protocol import robot_data, split
 
 from synth.materials import get_material
-from synth.sensors.thermal_dynamics import channel_terms
+from synth.sensors.thermal.dynamics import channel_terms
 from tactile_learn import thermal_calibration as calibration
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings

@@ -42,7 +42,7 @@ import numpy as np
 from synth.errors import ConfigError
 from synth.scene import Scene
 from synth.sensors.strips import StripReadout
-from synth.sensors.strips_config import StripsConfig
+from synth.sensors.strips.config import StripsConfig
 from tactile_learn.estimators.base import Estimator
 
 __all__ = ["SkinReconstructor", "strip_groups"]

@@ -49,7 +49,7 @@ from scipy.interpolate import LSQUnivariateSpline
 
 from synth.errors import DataError
 from synth.materials import Material
-from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
+from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
 
 __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
 

@@ -8,8 +8,8 @@ import pytest
 
 from synth.errors import ConfigError, InputError
 from synth.scene import Scene, load_scene
-from synth.sensors.strip_layouts import StripLayout
 from synth.sensors.strips import StripSensor, StripSimulator
+from synth.sensors.strips.layouts import StripLayout
 from tactile_learn.estimators.classical.projection import ProjectionEstimator
 from tactile_learn.sweep import point_scene
 from tactile_learn.tasks import get_task

@@ -9,7 +9,7 @@ import pytest
 from synth.errors import ConfigError
 from synth.scene import load_scene, parse_scene
 from synth.sensors.strips import StripSimulator
-from synth.sensors.strips_config import allowed_intervals, draw_except
+from synth.sensors.strips.config import allowed_intervals, draw_except
 from synth.stimuli import KINDS, ContactBatch, rasterize, window_cells
 from tests.conftest import tiny_strips_scene
 

@@ -10,7 +10,7 @@ import pytest
 
 from synth.errors import ConfigError
 from synth.scene import load_scene
-from synth.sensors.strips_config import allowed_intervals
+from synth.sensors.strips.config import allowed_intervals
 from synth.suite import available_suites, load_suite, parse_suite, suite_frames
 
 #: the families the issue names, by their names in strips16_ood

@@ -11,7 +11,7 @@ from thermal_reference import reference_channel
 from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal import phi
-from synth.sensors.thermal_dynamics import ChannelModel, channel_response, channel_terms, phi_integral
+from synth.sensors.thermal.dynamics import ChannelModel, channel_response, channel_terms, phi_integral
 
 T = np.geomspace(0.02, 8.0, 60)
 

@@ -7,7 +7,7 @@ import pytest
 
 from synth.scene import load_scene
 from synth.sensors.thermal import ContactModel, make_simulator, touch_excess
-from synth.sensors.thermal_fast import SERIES_RADIUS, record_excess, series_terms
+from synth.sensors.thermal.fast import SERIES_RADIUS, record_excess, series_terms
 
 
 @pytest.mark.parametrize("name", ["thermal", "thermal_wns"])

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy import special
+from thermal_reference import numerical_excess
 
 from synth.config import from_dict
 from synth.materials import get_material
@@ -18,7 +19,6 @@ from synth.sensors.thermal import (
     Readout,
     ReadoutConfig,
     contact_excess,
-    numerical_excess,
     phi,
     recovery_excess,
     spreading_conductance,

@@ -5,12 +5,15 @@ on a geometrically graded grid (a 1-D slab, or a spherical cavity of radius ``k 
 surface admittance is exactly ``e sqrt(s) + k_s``); the sensor node, the thermistor's lag states
 and the controller's integral are extra states of one linear system ``y' = A y + b``, ``y(0) = 0``
 (deviations from the pre-contact equilibrium), integrated by a stiff implicit solver with tight tolerances.
+
+:func:`numerical_excess` is the same kind of check for the seed's model (no lags, no control), exact
+in time: it checks the analytic contact solution of ``synth.sensors.thermal.physics``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from scipy import integrate, sparse
+from scipy import integrate, linalg, sparse
 
 
 def reference_channel(
@@ -135,3 +138,68 @@ def reference_channel(
         out[inside] = sol.y[reading][: inside.sum()]
         y = sol.y[:, -1]
     return np.asarray(out) + drift_k_s * sum(lags)  # relative to the reading at the onset
+
+
+def numerical_excess(
+    t: np.ndarray,
+    heat_capacity: float,
+    loss: float,
+    conductance: float,
+    k_w_mk: float,
+    diffusivity_m2_s: float,
+    spreading: float = 0.0,
+    v0: float = 1.0,
+    heating: float = 0.0,
+    cells: int = 400,
+) -> np.ndarray:
+    """Independent numerical solution of the same problem (a check of the analytic formula).
+
+    Finite volumes in space on a geometrically graded grid; exact in time (eigen-decomposition of
+    the symmetrised linear system, so no time-stepping error). ``spreading = 0`` solves the seed's
+    1-D slab ``u_t = alpha u_xx``; ``spreading > 0`` solves a spherical cavity of radius
+    ``a = k / spreading`` in an infinite body (``u_t = alpha (u_rr + 2 u_r / r)``), whose surface
+    admittance is exactly ``e sqrt(s) + k / a``. The sensor node obeys
+    ``C v' = S + G V0 - G v - H (v - u_surface)``. Returns ``v`` at the times ``t`` (s, > 0).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    alpha = diffusivity_m2_s
+    t_min, t_max = float(t.min()), float(t.max())
+    # grid: first cell resolves the shortest diffusion length, the body reaches 12 of the longest
+    first = min(np.sqrt(alpha * t_min) / 40, 0.1 * k_w_mk / max(conductance, 1e-300) + 1e-12)
+    length = 12 * np.sqrt(alpha * t_max)
+    ratio = (length / first) ** (1.0 / cells)  # geometric widths summing to about ``length``
+    widths = first * ratio ** np.arange(cells)
+    faces = np.concatenate([[0.0], np.cumsum(widths)])
+    centres = 0.5 * (faces[1:] + faces[:-1])
+    if spreading > 0:
+        a = k_w_mk / spreading
+        r_faces, r_centres = a + faces, a + centres
+        area = (r_faces / a) ** 2  # face area per unit contact area
+        volume = (r_faces[1:] ** 3 - r_faces[:-1] ** 3) / (3 * a**2)
+    else:
+        area = np.ones_like(faces)
+        volume = widths.copy()
+        r_centres = centres
+    rho_c = k_w_mk / alpha
+    cap = np.concatenate([[heat_capacity], rho_c * volume])
+    # conductances of the chain: sensor -> first cell centre (the interface conductance in series
+    # with half a cell of body), then cell centre to cell centre; the far end is held at 0
+    g0 = 1.0 / (1.0 / conductance + widths[0] / (2 * k_w_mk))
+    links = np.concatenate([[g0], k_w_mk * area[1:cells] / np.diff(r_centres)])
+    diag = np.zeros(cells + 1)
+    diag[:-1] -= links
+    diag[1:] -= links
+    diag[0] -= loss
+    # C y' = K y + b with b = (S + G V0) e_0, y(0) = V0 e_0. K is tridiagonal and symmetric: with
+    # y = M^-1/2 z it becomes z' = A z + M^-1/2 b, A = M^-1/2 K M^-1/2 symmetric tridiagonal
+    m = 1.0 / np.sqrt(cap)
+    lam, vec = linalg.eigh_tridiagonal(diag * m * m, links * m[:-1] * m[1:])
+    first = vec[0]  # only the sensor node is needed: y0 and b live on node 0
+    z0 = first * v0 / m[0]
+    bz = first * (heating + loss * v0) * m[0]
+    lt = lam[None, :] * t[:, None]
+    # per mode: z(t) = z0 e^(lam t) + bz (e^(lam t) - 1) / lam; lam < 0 (the held far end makes K
+    # negative definite), expm1 keeps small lam t accurate
+    growth = np.expm1(lt) / np.where(lam == 0, 1.0, lam)[None, :]
+    z = z0[None, :] * np.exp(lt) + bz[None, :] * growth
+    return (z * first[None, :]).sum(axis=1) * m[0]

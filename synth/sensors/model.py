@@ -38,7 +38,7 @@ import numpy as np
 
 from synth.sensors.base import ArraySpec
 
-__all__ = ["ModelSimulator", "SensorModel", "StimulusGenerator", "StimulusT", "simulate"]
+__all__ = ["ModelSimulator", "SensorModel", "StimulusGenerator", "StimulusT", "simulate", "stored_readings"]
 
 StimulusT = TypeVar("StimulusT")
 
@@ -48,6 +48,9 @@ class SensorModel(ABC, Generic[StimulusT]):
 
     #: the stages in the order ``forward`` applies them (documentation and conformance tests)
     stages: tuple[str, ...] = ("physics", "transduce", "noise", "adc")
+    #: readings are ADC codes even without noise (the FSR's): a dataset without noise stores
+    #: ``adc(forward(stimulus))``, not the clean signal (:func:`stored_readings`)
+    codes_without_noise: bool = False
 
     @abstractmethod
     def physics(self, stimulus: StimulusT) -> np.ndarray:
@@ -91,11 +94,21 @@ class StimulusGenerator(ABC, Generic[StimulusT]):
 
     @abstractmethod
     def truth(self, stimulus: StimulusT, wanted: tuple[str, ...]) -> dict[str, np.ndarray]:
-        """The wanted ground-truth and latent arrays of ``stimulus`` (only those; batch first)."""
+        """The wanted ground-truth and latent arrays of ``stimulus`` (only those; batch first).
+        ``wanted`` names every output the scene asks for, ``readings`` included."""
 
     @abstractmethod
     def truth_specs(self, wanted: tuple[str, ...]) -> dict[str, ArraySpec]:
         """Per-sample shape and dtype of every array :meth:`truth` returns for ``wanted``."""
+
+
+def stored_readings(model: SensorModel[Any], stimulus: Any, rng: np.random.Generator | None) -> np.ndarray:
+    """What a dataset stores as ``model``'s readings: ``forward(stimulus, rng)``; without noise
+    (``rng=None``) the clean signal, passed through the ADC for a sensor whose readings are codes
+    whatever the noise (``SensorModel.codes_without_noise``)."""
+    if rng is None and model.codes_without_noise:
+        return model.adc(model.forward(stimulus))
+    return model.forward(stimulus, rng)
 
 
 def simulate(
@@ -105,22 +118,32 @@ def simulate(
     rng: np.random.Generator,
     wanted: tuple[str, ...],
     noise: bool = True,
+    channels: dict[str, SensorModel[Any]] | None = None,
 ) -> dict[str, np.ndarray]:
     """The generic draw -> forward loop: ``n`` samples of the ``wanted`` outputs.
 
     ``readings`` are computed only when wanted; with ``noise`` they pass the noise and ADC stages
     (the generator's random stream is consumed by ``draw`` first, then by the noise, so the stimuli
-    do not depend on whether noise is on). Stored dtypes follow the specs.
+    do not depend on whether noise is on). ``channels`` are further sensor models read on the same
+    stimuli (a second thermistor beside the heated one), each an output of its own name, read after
+    the readings in their order. The generator's truth follows (it is given every wanted output:
+    a by-product of the readings, such as the clean readings, is stored only with them). Stored
+    dtypes follow the specs.
     """
     stimulus = generator.draw(n, rng)
     out: dict[str, np.ndarray] = {}
+    read_rng = rng if noise else None
     if "readings" in wanted:
         spec = model.reading_spec()
-        out["readings"] = model.forward(stimulus, rng if noise else None).astype(spec.dtype, copy=False)
-    others = tuple(w for w in wanted if w != "readings")
+        out["readings"] = stored_readings(model, stimulus, read_rng).astype(spec.dtype, copy=False)
+    for name, channel in (channels or {}).items():
+        if name in wanted:
+            spec = channel.reading_spec()
+            out[name] = stored_readings(channel, stimulus, read_rng).astype(spec.dtype, copy=False)
+    others = tuple(w for w in wanted if w != "readings" and w not in (channels or {}))
     if others:
-        specs = generator.truth_specs(others)
-        for key, value in generator.truth(stimulus, others).items():
+        specs = generator.truth_specs(wanted)
+        for key, value in generator.truth(stimulus, wanted).items():
             out[key] = np.asarray(value, dtype=specs[key].dtype)
     return out
 
@@ -130,21 +153,29 @@ class ModelSimulator:
     outputs and noise switch, and the specs of exactly those outputs."""
 
     def __init__(
-        self, model: SensorModel[Any], generator: StimulusGenerator[Any], wanted: tuple[str, ...], noise: bool = True
+        self,
+        model: SensorModel[Any],
+        generator: StimulusGenerator[Any],
+        wanted: tuple[str, ...],
+        noise: bool = True,
+        channels: dict[str, SensorModel[Any]] | None = None,
     ) -> None:
         self.model = model
         self.generator = generator
         self.wanted = tuple(wanted)
         self.noise = noise
+        self.channels = dict(channels or {})
 
     def output_specs(self) -> dict[str, ArraySpec]:
         specs: dict[str, ArraySpec] = {}
         if "readings" in self.wanted:
             specs["readings"] = self.model.reading_spec()
-        others = tuple(w for w in self.wanted if w != "readings")
-        if others:
-            specs.update(self.generator.truth_specs(others))
+        for name, channel in self.channels.items():
+            if name in self.wanted:
+                specs[name] = channel.reading_spec()
+        if any(w != "readings" and w not in self.channels for w in self.wanted):
+            specs.update(self.generator.truth_specs(self.wanted))
         return specs
 
     def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        return simulate(self.model, self.generator, n, rng, self.wanted, self.noise)
+        return simulate(self.model, self.generator, n, rng, self.wanted, self.noise, self.channels)

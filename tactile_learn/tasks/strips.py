@@ -10,7 +10,7 @@ import numpy as np
 
 from synth.errors import DataError
 from synth.scene import Scene
-from synth.sensors.strips_config import StripsConfig
+from synth.sensors.strips.config import StripsConfig
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.metrics import strip_map_metrics
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
@@ -137,7 +137,7 @@ class StripsTask(Task):
 
     def input_layout(self, scene: Scene) -> dict[str, Any]:
         """The readings order of the scene's layout: each group of channels, its first index and count."""
-        from synth.sensors.strip_layouts import StripLayout
+        from synth.sensors.strips.layouts import StripLayout
 
         layout = StripLayout(scene.sensor.geometry)
         return {
@@ -344,7 +344,7 @@ def _mirrored(
     """Mirror frames of any layout in place (maps) and by channel permutation (readings); a mirror
     that is no symmetry of the layout (a +45 diagonal layer alone under one flip) is replaced by the
     half-turn (both flips), which is one for every layout."""
-    from synth.sensors.strip_layouts import StripLayout
+    from synth.sensors.strips.layouts import StripLayout
 
     layout = StripLayout(scene.sensor.geometry)
     perms = {(fy, fx): layout.flip_permutation(fy, fx) for fy in (False, True) for fx in (False, True)}

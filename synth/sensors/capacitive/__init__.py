@@ -24,6 +24,7 @@ __all__ = [
     "PressGenerator",
     "Presses",
     "make_simulator",
+    "sensor_model",
 ]
 
 CONFIG_CLASS = CapacitiveConfig
@@ -40,3 +41,8 @@ def make_simulator(scene: Scene) -> ModelSimulator:
     config: CapacitiveConfig = scene.sensor
     model = CapacitiveModel(config)
     return ModelSimulator(model, PressGenerator(config, model), scene.outputs, scene.noise)
+
+
+def sensor_model(config: CapacitiveConfig) -> CapacitiveModel:
+    """The sensor model of a ``[capacitive]`` table."""
+    return CapacitiveModel(config)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from synth.config import param
 from synth.errors import ConfigError
-from synth.sensors.strips_config import StimulusKind
+from synth.sensors.strips.config import StimulusKind
 from synth.stimuli import KINDS
 
 __all__ = [

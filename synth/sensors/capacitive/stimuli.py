@@ -23,7 +23,7 @@ from synth.errors import InputError
 from synth.sensors.base import ArraySpec
 from synth.sensors.capacitive.config import CapacitiveConfig
 from synth.sensors.model import SensorModel, StimulusGenerator
-from synth.sensors.strips_config import StimulusKind
+from synth.sensors.strips.config import StimulusKind
 from synth.stimuli import KINDS, ContactBatch, rasterize, window_size
 
 __all__ = ["CONTACT_PARAMS", "PressGenerator", "Presses", "half_sine"]

@@ -28,7 +28,7 @@ import numpy as np
 
 from synth.scene import Scene
 from synth.sensors.thermal import ThermalConfig, spreading_conductance
-from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
+from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
 

@@ -42,7 +42,7 @@ import math
 import numpy as np
 from scipy import special
 
-from synth.sensors.thermal import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
+from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
 

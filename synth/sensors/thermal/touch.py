@@ -5,7 +5,7 @@ and a step contact. A real fingertip (e.g. the robot recordings of issue 11) dif
 thermistors lag the body they sit in, its heater is held at a set point (or switched off when the
 press is detected), its reading drifts before contact, the contact builds up over the press, a
 passive (unheated) thermistor touches the same object, and the recorder jitters its time stamps.
-Every one of these is a term of the closed form of :func:`synth.sensors.thermal_dynamics.channel_terms`
+Every one of these is a term of the closed form of :func:`synth.sensors.thermal.dynamics.channel_terms`
 (verified against a finite-volume solution in the tests); per pixel in contact::
 
     heated  = R0 + r drift(t) + (R0 + r (tau_1 + tau_2) - T_obj) obj(t) - Q power(t - t_off)   [heater "off"]
@@ -23,14 +23,10 @@ here; :class:`~synth.sensors.thermal.ThermalConfig` checks that). Pixels touchin
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-from synth.sensors.thermal_dynamics import ChannelModel, channel_terms
-
-if TYPE_CHECKING:
-    from synth.sensors.thermal import ThermalConfig
+from synth.sensors.thermal.config import ThermalConfig
+from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
 
 __all__ = ["clean_channels", "draw_dynamics", "jitter"]
 

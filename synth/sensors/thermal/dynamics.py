@@ -66,7 +66,7 @@ _STABLE_TOL = 1e-7
 
 
 def _phi(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-    from synth.sensors.thermal import phi  # the seed model's stable kernel, shared
+    from synth.sensors.thermal.physics import phi  # the seed model's stable kernel, shared
 
     return phi(p, t)
 

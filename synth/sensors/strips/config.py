@@ -9,6 +9,7 @@ import numpy as np
 
 from synth.config import param
 from synth.errors import ConfigError
+from synth.sensors.strips.layouts import StripGeometry, StripLayout
 
 __all__ = [
     "DRAWN_PARAMS",
@@ -23,39 +24,6 @@ __all__ = [
     "allowed_intervals",
     "draw_except",
 ]
-
-
-@dataclass(frozen=True)
-class StripGeometry:
-    """Row strips run along x and are stacked along y; column strips run along y. Intersection
-    (i, j) is the ``pitch x pitch`` cell centred where row ``i`` crosses column ``j``."""
-
-    n_rows: int = param(16, lo=1, hi=128, doc="row strips (N)")
-    n_cols: int = param(16, lo=1, hi=128, doc="column strips (M)")
-    pitch_mm: float = param(2.5, lo=0.1, hi=50.0, unit="mm", doc="centre-to-centre strip spacing")
-    strip_width_mm: float = param(2.0, lo=0.01, hi=50.0, unit="mm", doc="conductive width of a strip")
-    samples_per_pitch: int = param(4, lo=4, hi=32, doc="fine-lattice samples per pitch (pressure field)")
-    layout: Literal["orthogonal", "diagonal", "two_ended", "taps"] = param(
-        "orthogonal",
-        omit_default=True,
-        doc="strips and readout (synth.sensors.strip_layouts): the orthogonal pair; + diagonal strips; "
-        "rows and columns read at both ends; rows and columns read between taps",
-    )
-    diagonals: Literal["+45", "-45", "both"] = param(
-        "+45", omit_default=True, doc="diagonal layers of layout 'diagonal', each one strip thickness deeper"
-    )
-    taps: int = param(2, lo=2, hi=64, omit_default=True, doc="sections (readings) per strip of layout 'taps'")
-
-    def __post_init__(self) -> None:
-        if self.layout == "taps" and self.taps > min(self.n_rows, self.n_cols):
-            raise ConfigError(
-                f"geometry.taps: {self.taps} sections per strip, but a strip has only "
-                f"{min(self.n_rows, self.n_cols)} segments"
-            )
-        if self.strip_width_mm > self.pitch_mm:
-            raise ConfigError(
-                f"geometry.strip_width_mm: {self.strip_width_mm} mm is wider than the pitch ({self.pitch_mm} mm)"
-            )
 
 
 @dataclass(frozen=True)
@@ -251,8 +219,6 @@ class StripsConfig:
 
     def wire_count(self) -> int:
         """Signal wires to the readout: one per reading (a strip end, a tap's section)."""
-        from synth.sensors.strip_layouts import StripLayout
-
         return StripLayout(self.geometry).n_channels
 
     def __post_init__(self) -> None:

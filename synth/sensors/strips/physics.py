@@ -1,5 +1,5 @@
 """Soft strip array: orthogonal conductive-rubber strips, one reading per strip (other layouts:
-diagonal strips, two-ended readout, taps - ``synth.sensors.strip_layouts``).
+diagonal strips, two-ended readout, taps - :mod:`synth.sensors.strips.layouts`).
 
 Physics, from stimulus to reading (every stage is its own object, so tests can check each):
 
@@ -17,56 +17,33 @@ Physics, from stimulus to reading (every stage is its own object, so tests can c
    :class:`GaussianNoise` and the ADC's quantisation and clipping (:class:`Adc`).
 
 Ground truth is the intersection map: the mean *surface* pressure over each ``pitch x pitch``
-cell (kPa), and the contact list. :meth:`StripSensor.forward` answers "what would my sensor read
-for this pressure field?" for any user field on the documented lattice.
+cell (kPa), and the contact list (:mod:`synth.sensors.strips.stimuli`); the stages as one
+:class:`~synth.sensors.model.SensorModel` are :class:`synth.sensors.strips.sensor.StripModel`.
+:meth:`StripSensor.forward` answers "what would my sensor read for this pressure field?" for any
+user field on the documented lattice.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
-from typing import Any
 
 import numpy as np
 
 from synth.errors import InputError
 from synth.mechanics import patch_operator, separable_kernel
-from synth.scene import Scene
-from synth.sensors.base import ArraySpec
-from synth.sensors.strip_layouts import StripLayout
-from synth.sensors.strips_config import DRAWN_PARAMS, StripsConfig, draw_except
-from synth.sensors.strips_config import StripReadout as ReadoutConfig
-from synth.stimuli import DETAIL, KINDS, ContactBatch, Windows, rasterize, window_cells, window_size
+from synth.sensors.strips.config import StripReadout as ReadoutConfig
+from synth.sensors.strips.config import StripsConfig
+from synth.sensors.strips.layouts import StripLayout
+from synth.stimuli import Windows
 
 __all__ = [
-    "CONFIG_CLASS",
-    "DEFAULT_OUTPUTS",
-    "OUTPUTS",
     "Adc",
     "GaussianNoise",
     "PiezoLaw",
     "StripArray",
     "StripReadout",
     "StripSensor",
-    "StripSimulator",
-    "make_simulator",
 ]
-
-CONFIG_CLASS = StripsConfig
-OUTPUTS: dict[str, str] = {
-    "readings": "strip readings (V), rows then columns: (N+M,)",
-    "pressure": "intersection map: mean surface pressure over each pitch cell (kPa), (N, M)",
-    "field": "fine surface pressure field (kPa), (N*s, M*s)",
-    "latent": "contact list, strip gains and noise-free readings of every frame",
-}
-DEFAULT_OUTPUTS = ("readings", "pressure", "latent")
-
-
-#: kinds of the shape library beyond the seed's four (see ``StripSimulator.shaped``)
-SHAPED_KINDS = ("ring", "terminal", "blob")
-#: window sizes (lattice cells per side) that contacts are grouped into, each kind capped at its own
-#: largest window: few sizes (each caches its operator tables), none much larger than needed
-WINDOW_LADDER = (12, 16, 22, 30, 40, 54, 72, 96)
 
 
 def _band_weights(n: int, cells: int, h: float, pitch: float, width: float) -> np.ndarray:
@@ -121,7 +98,7 @@ class StripArray:
         self.col_y = np.stack([patch_operator(seg_y, r, pos_y, half) for r in k_col.rows]).astype(f32)
         self.col_x = np.stack([patch_operator(col_band, c, pos_x, half) for c in k_col.cols]).astype(f32)
         # diagonal layers (layout 'diagonal'), each one strip thickness below the one above it: a
-        # diagonal segment sees the mean stress over its whole cell at its depth (strip_layouts)
+        # diagonal segment sees the mean stress over its whole cell at its depth (synth.sensors.strips.layouts)
         self.layout = StripLayout(g)
         self.depth_diag_mm = [
             layers.cover_mm + (k + 2) * layers.strip_thickness_mm for k in range(len(self.layout.layers) - 2)
@@ -459,7 +436,7 @@ class StripSensor:
 
         ``gains`` (B, strips) default to 1 (a nominal device; N+M strips, plus the diagonal strips
         of layout 'diagonal'); ``noise=True`` needs ``rng``. Returns ``readings`` (B, C) float32 V
-        (C = N+M for the orthogonal pair; ``synth.sensors.strip_layouts`` for the others),
+        (C = N+M for the orthogonal pair; :mod:`synth.sensors.strips.layouts` for the others),
         ``pressure`` (B, N, M) float32 kPa and ``readings_clean``.
         """
         row, col = self.array.segment_stress(field)
@@ -496,7 +473,7 @@ class StripSensor:
         For a load on a single segment ``L`` is that segment's ``f``; for a uniform load over ``k``
         segments it is ``k f``. This is the "strip pressure integral" of the classical estimators.
         A two-ended strip's end reads the sum of ``f`` weighted by the share of current that flows
-        to that end (``synth.sensors.strip_layouts``).
+        to that end (:mod:`synth.sensors.strips.layouts`).
         """
         r0 = self.config.piezo.strip_resistance_ohm
         resistance = self.readout.resistance(readings)
@@ -507,241 +484,3 @@ class StripSensor:
             share = (np.asarray(readings, dtype=np.float64) - c.offset_v) / (c.amplifier_gain * c.supply_v / 4.0)
             loads = np.where(self.layout.linear, np.clip(share, 0.0, None) * segments, loads)
         return loads
-
-
-# -------------------------------------------------------------------------------------------------
-# simulator
-
-
-class StripSimulator:
-    """Draws contacts from the scene's stimulus distribution and computes the wanted outputs."""
-
-    def __init__(self, scene: Scene) -> None:
-        self.scene = scene
-        self.config: StripsConfig = scene.sensor
-        g = self.config.geometry
-        self.k_max = self.config.stimuli.count[1]
-        h = g.pitch_mm / g.samples_per_pitch
-        e_star = self.config.layers.e_star_mpa
-        # one window size per kind, large enough for every entry of that kind
-        self.window: dict[str, int] = {}
-        for spec in self.config.stimuli.kinds:
-            size = window_size(
-                spec.kind,
-                h,
-                e_star,
-                radius_mm=spec.radius_mm[1],
-                force_n=spec.force_n[1],
-                width_mm=spec.width_mm[1],
-                length_mm=spec.length_mm[1],
-                min_length_mm=spec.length_mm[0],
-            )
-            self.window[spec.kind] = max(size, self.window.get(spec.kind, 0))
-        # scenes that use only the first four kinds, untilted, draw (and store) exactly what they did
-        # before the shape library grew: their datasets stay identical bit for bit
-        self.shaped = any(s.kind in SHAPED_KINDS or s.tilt != (0.0, 0.0) for s in self.config.stimuli.kinds)
-        margin = self.config.stimuli.margin_mm
-        reach = max(0.0, -margin) / h  # centres may lie this many cells outside the array
-        self.pad = int(np.ceil(reach)) + max(self.window.values(), default=0)
-
-    @cached_property
-    def sensor(self) -> StripSensor:
-        return StripSensor(self.config, pad=self.pad)
-
-    def output_specs(self) -> dict[str, ArraySpec]:
-        g = self.config.geometry
-        n, m, k = g.n_rows, g.n_cols, self.k_max
-        layout = StripLayout(g)
-        channels, strips = layout.n_channels, layout.n_strips
-        specs: dict[str, ArraySpec] = {}
-        if self.scene.wants("readings"):
-            what = (
-                OUTPUTS["readings"] if layout.orthogonal else f"readings (V) of layout {layout.name!r}: ({channels},)"
-            )
-            specs["readings"] = ArraySpec((channels,), "float32", what)
-        if self.scene.wants("pressure"):
-            specs["pressure"] = ArraySpec((n, m), "float32", OUTPUTS["pressure"])
-        if self.scene.wants("field"):
-            specs["field"] = ArraySpec((n * g.samples_per_pitch, m * g.samples_per_pitch), "float32", OUTPUTS["field"])
-        if self.scene.wants("latent"):
-            specs.update(
-                latent_n_contacts=ArraySpec((), "int8", "contacts in the frame"),
-                latent_kind=ArraySpec((k,), "int8", f"stimulus kind index into {list(KINDS)}, -1 = no contact"),
-                latent_xy_mm=ArraySpec((k, 2), "float32", "contact centre (x, y) in mm from the array's corner"),
-                latent_force_n=ArraySpec((k,), "float32", "contact force (N)"),
-                latent_radius_mm=ArraySpec((k,), "float32", "sphere / punch / edge tip radius (mm)"),
-                latent_width_mm=ArraySpec((k,), "float32", "block width (mm)"),
-                latent_length_mm=ArraySpec((k,), "float32", "block or edge length (mm)"),
-                latent_angle_deg=ArraySpec((k,), "float32", "block or edge angle (deg)"),
-                latent_twin=ArraySpec((), "bool", "contacts are identical copies (ghost-ambiguous)"),
-                **(
-                    {
-                        "latent_hole_fraction": ArraySpec((k,), "float32", "ring / terminal hole over outer radius"),
-                        "latent_tilt": ArraySpec((k,), "float32", "block pressure slope along its length"),
-                        "latent_detail": ArraySpec((k, DETAIL), "float32", "uniform numbers shaping a blob"),
-                    }
-                    if self.shaped
-                    else {}
-                ),
-                latent_strip_gain=ArraySpec((strips,), "float32", "per-strip sensitivity gain"),
-            )
-            if self.scene.wants("readings"):
-                specs["readings_clean"] = ArraySpec((channels,), "float32", "noise-free, unquantised readings (V)")
-        return specs
-
-    # -- drawing -------------------------------------------------------------------------------
-
-    def draw_contacts(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        """Contact parameters, padded to ``(n, k_max)``; the same draws whatever outputs are wanted."""
-        st = self.config.stimuli
-        g = self.config.geometry
-        k = self.k_max
-        if st.count_weights:
-            weights = np.asarray(st.count_weights, dtype=np.float64)
-            count = st.count[0] + rng.choice(len(weights), size=n, p=weights / weights.sum())
-        else:
-            count = rng.integers(st.count[0], st.count[1] + 1, size=n)
-        count[rng.random(n) < st.empty_fraction] = 0
-        weights = np.array([s.weight for s in st.kinds])
-        spec_index = rng.choice(len(st.kinds), size=(n, k), p=weights / weights.sum())
-        u = rng.random((n, k, 7))
-        width_y, width_x = g.n_rows * g.pitch_mm, g.n_cols * g.pitch_mm
-        x = st.margin_mm + u[..., 0] * (width_x - 2 * st.margin_mm)
-        y = st.margin_mm + u[..., 1] * (width_y - 2 * st.margin_mm)
-
-        twin = (count >= 2) & (rng.random(n) < st.twin_fraction)
-        # the shape library's extra parameters are drawn after everything the first four kinds use
-        extra = rng.random((n, k, 2 + DETAIL)) if self.shaped else np.zeros((n, k, 2 + DETAIL))
-        uniforms = np.concatenate([u[..., 2:], extra[..., :2]], axis=-1)
-
-        def draw(col: int, attr: str) -> np.ndarray:
-            out = np.empty((n, k))
-            for index, spec in enumerate(st.kinds):
-                sel = spec_index == index
-                lo, hi = getattr(spec, attr)
-                out[sel] = draw_except(uniforms[..., col][sel], lo, hi, spec.holdouts(attr))
-            return out
-
-        params = {attr: draw(col, attr) for col, attr in enumerate(DRAWN_PARAMS)}
-        params["detail"] = extra[..., 2:]
-        if twin.any():  # every contact copies the first one's kind and parameters
-            spec_index[twin] = spec_index[twin, :1]
-            for value in params.values():
-                value[twin] = value[twin, :1]
-        present = np.arange(k)[None, :] < count[:, None]
-        kind_code = np.array([KINDS.index(s.kind) for s in st.kinds])[spec_index]
-        return {
-            "count": count,
-            "present": present,
-            "spec": spec_index,
-            "kind": np.where(present, kind_code, -1),
-            "x_mm": x,
-            "y_mm": y,
-            "twin": twin,
-            **params,
-        }
-
-    def draw_gains(self, n: int, rng: np.random.Generator) -> np.ndarray:
-        spread = self.config.piezo.gain_spread
-        # clipped so that a 6-sigma draw cannot make a strip's sensitivity vanish or flip sign
-        strips = StripLayout(self.config.geometry).n_strips  # not self.sensor: no mechanics for latent-only
-        return np.clip(1.0 + spread * rng.standard_normal((n, strips)), 0.5, 1.5).astype(np.float32)
-
-    def windows(self, contacts: dict[str, np.ndarray]) -> list[tuple[tuple[np.ndarray, np.ndarray], Windows]]:
-        """Rasterised windows per stimulus kind, with the (frame, slot) of each window."""
-        out = []
-        h = self.sensor.field_pitch_mm
-        e_star = self.config.layers.e_star_mpa
-        for kind in dict.fromkeys(s.kind for s in self.config.stimuli.kinds):
-            sel = contacts["present"] & (contacts["kind"] == KINDS.index(kind))
-            if not sel.any():
-                continue
-            frame, slot = np.nonzero(sel)
-            batch = ContactBatch(**{key: contacts[key][sel] for key in ContactBatch.__dataclass_fields__})
-            # contacts share a window size per bucket of the ladder: a short edge is not rasterised
-            # in (nor multiplied through) the window of the longest edge the scene allows
-            needed = window_cells(kind, batch, h, e_star)
-            ladder = np.array([s for s in WINDOW_LADDER if s < self.window[kind]] + [self.window[kind]])
-            bucket = ladder[np.minimum(np.searchsorted(ladder, needed), len(ladder) - 1)]
-            for size in np.unique(bucket):
-                pick = bucket == size
-                fields: dict[str, Any] = {
-                    key: None if getattr(batch, key) is None else getattr(batch, key)[pick]
-                    for key in ContactBatch.__dataclass_fields__
-                }
-                part = ContactBatch(**fields)
-                out.append(((frame[pick], slot[pick]), rasterize(kind, part, h, int(size), e_star)))
-        return out
-
-    def simulate(self, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-        contacts = self.draw_contacts(n, rng)
-        gains = self.draw_gains(n, rng)
-        g = self.config.geometry
-        out: dict[str, np.ndarray] = {}
-        want_readings = self.scene.wants("readings")
-        want_pressure = self.scene.wants("pressure")
-        want_field = self.scene.wants("field")
-        windows = self.windows(contacts) if (want_readings or want_pressure or want_field) else []
-        shape = (n, g.n_rows, g.n_cols)
-        row, col, pressure = (
-            np.zeros(shape, np.float32),
-            np.zeros(shape, np.float32),
-            np.zeros(shape, np.float32),
-        )
-        layout = StripLayout(g)
-        n_diag = len(layout.layers) - 2 if want_readings else 0
-        diag = np.zeros((n, n_diag, g.n_rows, g.n_cols), np.float32) if n_diag else None
-        for slots, win in windows:
-            parts = self.sensor.array.window_products(win, stress=want_readings, cells=want_pressure)
-            # a frame holds at most one window per slot: plain fancy-index adds, no np.add.at needed
-            for slot in np.unique(slots[1]):
-                sel = slots[1] == slot
-                frames = slots[0][sel]
-                for key, target in (("row", row), ("col", col), ("cells", pressure), ("diag", diag)):
-                    if key in parts and target is not None:
-                        target[frames] += parts[key][sel]
-        if want_readings:
-            # frames without contact keep zero stress: their readings are the baseline plus noise;
-            # the separable kernel's truncation can leave -1e-6-sized stress far from any load
-            row, col = np.maximum(row, 0.0), np.maximum(col, 0.0)
-            diag = None if diag is None else np.maximum(diag, 0.0)
-            clean = self.sensor.clean_readings(row, col, gains, diag).astype(np.float32)
-            out["readings"] = self.sensor.digitise(clean, rng, self.scene.noise).astype(np.float32)
-        if want_pressure:
-            out["pressure"] = np.maximum(pressure, 0.0)
-        if want_field:
-            out["field"] = self._field(n, windows)
-        if self.scene.wants("latent"):
-            f32 = np.float32
-            out.update(
-                latent_n_contacts=contacts["count"].astype(np.int8),
-                latent_kind=contacts["kind"].astype(np.int8),
-                latent_xy_mm=np.where(
-                    contacts["present"][..., None], np.stack([contacts["x_mm"], contacts["y_mm"]], -1), 0
-                ).astype(f32),
-                latent_twin=contacts["twin"],
-                latent_strip_gain=gains,
-            )
-            keys = DRAWN_PARAMS if self.shaped else DRAWN_PARAMS[:5]
-            for key in keys:
-                out[f"latent_{key}"] = np.where(contacts["present"], contacts[key], 0).astype(f32)
-            if self.shaped:
-                out["latent_detail"] = np.where(contacts["present"][..., None], contacts["detail"], 0).astype(f32)
-            if want_readings:
-                out["readings_clean"] = clean
-        return out
-
-    def _field(self, n: int, windows: list[tuple[tuple[np.ndarray, np.ndarray], Windows]]) -> np.ndarray:
-        ny, nx = self.sensor.field_shape
-        pad = self.pad
-        field = np.zeros((n, ny + 2 * pad, nx + 2 * pad), np.float32)
-        for (frame, _slot), win in windows:
-            size = win.values.shape[-1]
-            iy = np.clip(win.y0[:, None] + pad + np.arange(size), 0, ny + 2 * pad - 1)
-            ix = np.clip(win.x0[:, None] + pad + np.arange(size), 0, nx + 2 * pad - 1)
-            np.add.at(field, (frame[:, None, None], iy[:, :, None], ix[:, None, :]), win.values.astype(np.float32))
-        return field[:, pad : pad + ny, pad : pad + nx]
-
-
-def make_simulator(scene: Scene) -> StripSimulator:
-    return StripSimulator(scene)
