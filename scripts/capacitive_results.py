@@ -24,7 +24,7 @@ import argparse
 import dataclasses
 import itertools
 import sys
-import time
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -40,14 +40,13 @@ from synth.stimuli import KINDS
 from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, fit_calibration
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.capacitive import front_end_errors
+from tactile_learn.timing import timed
 
 
 def calibration(args: argparse.Namespace) -> dict[str, Any]:
     rig = load_scene("capacitive8_rig")
     presses = simulate_shard(rig, 7, 0, 192)
-    start = time.perf_counter()
-    table, summary = fit_calibration(presses["readings"], presses["cell_load"], rig.sensor)
-    fit_s = time.perf_counter() - start
+    (table, summary), fit_s = timed(partial(fit_calibration, presses["readings"], presses["cell_load"], rig.sensor))
     gain, stiffness = device_cells(rig.sensor)
     scene = load_scene("capacitive8")
     config = dataclasses.replace(scene.sensor, calibration=table)

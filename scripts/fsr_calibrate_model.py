@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from synth.config import replace
+from synth.io import atomic_write_json
 from synth.scene import Scene, load_scene
 from synth.sensors import fsr
 from tactile_learn.estimators.classical.triangulation import TriangulationEstimator
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({**setting, **m, "chosen": setting == chosen})
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"magnitudes": mag, "sweep": rows}, indent=2) + "\n")
+        atomic_write_json(args.json, {"magnitudes": mag, "sweep": rows})
     return 0
 
 

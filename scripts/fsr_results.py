@@ -22,15 +22,14 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from synth.dataset import Dataset, generate
+from synth.io import atomic_write_json
 from synth.scene import load_scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
@@ -42,6 +41,7 @@ from tactile_learn.tasks.fsr import (
     fsr_metrics,
     to_nominal_film,
 )
+from tactile_learn.timing import interleaved_times, summary_us
 
 SPLITS = {"train": (1, 200_000), "val": (2, 5_000), "test": (3, 20_000)}
 SHOWN = (
@@ -110,14 +110,9 @@ def calibrate_films(
 
 
 def latency_us(estimator: Estimator, frame: np.ndarray, repeats: int = 300) -> float:
-    for _ in range(20):
-        estimator.predict(frame)
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        estimator.predict(frame)
-        times.append(time.perf_counter() - start)
-    return float(np.median(times) * 1e6)
+    """Median batch-1 latency of ``predict`` on ``frame`` (us), after 20 warm-up calls."""
+    times = interleaved_times({"predict": estimator.predict}, frame, rounds=repeats, warmup=20)
+    return summary_us(times["predict"])["median_us"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -183,8 +178,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{entry['latency_us_batch1']:7.1f}us"
             )
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=2) + "\n")
+        atomic_write_json(args.json, results)
     return 0
 
 

@@ -2,9 +2,11 @@
 
 Every ``import`` of the packages' own modules counts, at module level or inside a function (a lazy
 import still ties the two modules together). The layers, lowest first, and the arrows they forbid are
-in ``RULES``; a module may import anything below it and nothing above.
+in ``RULES``; a module may import anything below it and nothing above. ``REACH_RULES`` forbid a
+chain of imports (e.g. the runtime reaching torch through a module that imports it lazily).
+``tests/tactile_learn/test_import_graph.py`` holds the repository to these rules.
 
-    python scripts/import_graph.py                 # report; exit 1 on a cycle or a forbidden arrow
+    python scripts/import_graph.py                 # report; exit 1 on a cycle, forbidden arrow or chain
     python scripts/import_graph.py --dot graph.dot # also the graph for Graphviz (dot -Tsvg graph.dot)
     python scripts/import_graph.py --sizes 15      # the 15 largest modules and functions
 """
@@ -14,11 +16,12 @@ from __future__ import annotations
 import argparse
 import ast
 import fnmatch
-import json
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from synth.io import atomic_write_json
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("synth", "tactile_learn")
@@ -34,8 +37,29 @@ RULES: tuple[tuple[str, str, str], ...] = (
     ("tactile_learn.estimators.classical*", "torch*", "classical estimators run without torch"),
     ("tactile_learn.runtime*", "torch*", "a deployment installs numpy and onnxruntime only"),
     ("tactile_learn.validation*", "tactile_learn.tasks*", "input checks sit below tasks"),
+    ("tactile_learn.*", "torch*", "torch only where training and export happen"),
 )
-EXEMPT = {"tactile_learn.cli*": "tactile_learn.cli*"}
+#: importers allowed an arrow that a rule's imported pattern forbids (patterns over dotted names)
+EXEMPT: dict[str, tuple[str, ...]] = {
+    "tactile_learn.cli*": ("tactile_learn.cli*",),  # the CLI's own modules
+    "torch*": (  # training, export and the torch-eager bench backend; never the runtime or classical path
+        "tactile_learn.train*",
+        "tactile_learn.export",
+        "tactile_learn.checkpoints",
+        "tactile_learn.distributed",
+        "tactile_learn.torch_estimator",
+        "tactile_learn.nets*",
+        "tactile_learn.bench",
+        "tactile_learn.sweep",
+    ),
+}
+#: (start pattern, target pattern, why): no chain of imports from ``start`` may reach ``target``,
+#: lazy imports included (a function-level import still runs in a deployment that calls it)
+REACH_RULES: tuple[tuple[str, str, str], ...] = (
+    ("tactile_learn.runtime*", "torch*", "a deployment installs numpy and onnxruntime only"),
+    ("tactile_learn.estimators.classical*", "torch*", "classical estimators run without torch"),
+    ("synth*", "tactile_learn*", "synth is the physics layer: it knows nothing of learning"),
+)
 
 
 @dataclass
@@ -47,8 +71,8 @@ class Module:
     functions: list[tuple[str, int]] = field(default_factory=list)  # (qualified name, lines)
 
 
-def module_name(path: Path) -> str:
-    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+def module_name(path: Path, root: Path = ROOT) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
     return ".".join(parts)
@@ -114,14 +138,15 @@ def _in_type_checking(tree: ast.Module) -> set[int]:
     return skip
 
 
-def build(root: Path = ROOT) -> dict[str, Module]:
-    paths = sorted(p for pkg in PACKAGES for p in (root / pkg).rglob("*.py"))
-    known = {module_name(p) for p in paths}
+def build(root: Path = ROOT, packages: Iterable[str] = PACKAGES) -> dict[str, Module]:
+    """Every module of ``packages`` (folders under ``root``) with its imports and function sizes."""
+    paths = sorted(p for pkg in packages for p in (root / pkg).rglob("*.py"))
+    known = {module_name(p, root) for p in paths}
     modules: dict[str, Module] = {}
     for path in paths:
         text = path.read_text(encoding="utf-8")
         tree = ast.parse(text)
-        name = module_name(path)
+        name = module_name(path, root)
         mod = Module(name, path, len(text.splitlines()), functions=_functions(tree))
         skip = _in_type_checking(tree)
         typed_only = {
@@ -182,17 +207,50 @@ def cycles(modules: dict[str, Module]) -> list[list[str]]:
     return sorted(found)
 
 
-def violations(modules: dict[str, Module]) -> list[tuple[str, str, str]]:
-    """(importer, imported, rule) for every arrow that ``RULES`` forbids."""
+def violations(
+    modules: dict[str, Module],
+    rules: Iterable[tuple[str, str, str]] = RULES,
+    exempt: dict[str, tuple[str, ...]] | None = None,
+) -> list[tuple[str, str, str]]:
+    """(importer, imported, rule) for every arrow that ``rules`` forbid."""
+    exempt = EXEMPT if exempt is None else exempt
     out = []
     for mod in modules.values():
         for dest in mod.imports:
-            for src_pat, dst_pat, why in RULES:
-                exempt = EXEMPT.get(dst_pat)
-                if exempt and fnmatch.fnmatchcase(mod.name, exempt):
+            for src_pat, dst_pat, why in rules:
+                if any(fnmatch.fnmatchcase(mod.name, allowed) for allowed in exempt.get(dst_pat, ())):
                     continue
                 if fnmatch.fnmatchcase(mod.name, src_pat) and fnmatch.fnmatchcase(dest, dst_pat):
                     out.append((mod.name, dest, why))
+    return sorted(out)
+
+
+def reach_violations(
+    modules: dict[str, Module], rules: Iterable[tuple[str, str, str]] = REACH_RULES
+) -> list[tuple[str, str, str]]:
+    """(start, chain of imports ``a -> b -> target``, rule) for every module matching a rule's
+    start pattern from which some chain of imports, lazy ones included, reaches its target."""
+    out = []
+    for src_pat, dst_pat, why in rules:
+        for start in sorted(m for m in modules if fnmatch.fnmatchcase(m, src_pat)):
+            parent: dict[str, str] = {start: ""}
+            queue = [start]
+            hit = None
+            while queue and hit is None:  # breadth first: the shortest chain is the one reported
+                current = queue.pop(0)
+                for dest in sorted(modules[current].imports if current in modules else ()):
+                    if dest in parent:
+                        continue
+                    parent[dest] = current
+                    if fnmatch.fnmatchcase(dest, dst_pat):
+                        hit = dest
+                        break
+                    queue.append(dest)
+            if hit is not None:
+                chain = [hit]
+                while parent[chain[-1]]:
+                    chain.append(parent[chain[-1]])
+                out.append((start, " -> ".join(reversed(chain)), why))
     return sorted(out)
 
 
@@ -217,6 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     modules = build()
     found_cycles = cycles(modules)
     bad = violations(modules)
+    reached = reach_violations(modules)
     n_edges = sum(1 for m in modules.values() for d in m.imports if d in modules)
     largest_modules = sorted(((m.lines, m.name) for m in modules.values()), reverse=True)[: args.sizes]
     largest_functions = sorted(((n, f"{m.name}:{f}") for m in modules.values() for f, n in m.functions), reverse=True)[
@@ -230,6 +289,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"forbidden arrows: {len(bad)}")
     for src, dst, why in bad:
         print(f"  {src} -> {dst}  ({why})")
+    print(f"forbidden chains: {len(reached)}")
+    for _start, chain, why in reached:
+        print(f"  {chain}  ({why})")
     print("largest modules (lines):")
     for n, name in largest_modules:
         print(f"  {n:5d}  {name}")
@@ -242,11 +304,12 @@ def main(argv: list[str] | None = None) -> int:
         report = {
             "cycles": found_cycles,
             "violations": [list(v) for v in bad],
+            "chains": [list(v) for v in reached],
             "largest_modules": largest_modules,
             "largest_functions": largest_functions,
         }
-        Path(args.json).write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    return 1 if found_cycles or bad else 0
+        atomic_write_json(args.json, report)
+    return 1 if found_cycles or bad or reached else 0
 
 
 if __name__ == "__main__":

@@ -34,18 +34,19 @@ import argparse
 import json
 import os
 import sys
-import time
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 import numpy as np
 
-from synth.io import atomic_write_text
+from synth.io import atomic_write_json
 from synth.scene import Scene, load_scene
 from tactile_learn.bench import _bench_data, _same_sensor, machine_info
 from tactile_learn.methods import shipped_models
 from tactile_learn.runtime import OnnxEstimator, read_card
 from tactile_learn.tasks import get_task
+from tactile_learn.timing import interleaved_times, summary_us, timed
 
 TASKS = ("strips", "fsr", "thermal", "capacitive")
 
@@ -63,36 +64,36 @@ def methods_of(task_name: str, scene: Scene) -> dict[str, Any]:
     return found
 
 
+def _batch_of(call: Callable[[np.ndarray], Any], big: np.ndarray) -> Callable[[np.ndarray], Any]:
+    """``call`` on the batch ``big`` whatever frame the timer hands it."""
+    return lambda _frame: call(big)
+
+
 def measure(
     calls: dict[str, Callable[[np.ndarray], Any]], frames: np.ndarray, rounds: int, per_round: int
 ) -> dict[str, dict[str, float]]:
     big = np.ascontiguousarray(np.resize(frames, (1024, *frames.shape[1:])), dtype=np.float32)
-    singles = [np.ascontiguousarray(frames[i : i + 1], dtype=np.float32) for i in range(len(frames))]
+    singles = np.ascontiguousarray(frames, dtype=np.float32)
     slow: set[str] = set()
     for name, call in calls.items():  # warm-up: sessions, caches, lazily fitted state
         for i in range(20):
-            call(singles[i % len(singles)])
-        start = time.perf_counter()
-        call(big)
-        if time.perf_counter() - start > 0.5:  # seconds per batch: 3 batch calls and 3 frames a round
+            call(singles[i % len(singles) : i % len(singles) + 1])
+        if timed(partial(call, big))[1] > 0.5:  # seconds per batch: 3 batch calls and 3 frames a round
             slow.add(name)
-    one: dict[str, list[float]] = {k: [] for k in calls}
-    batch: dict[str, list[float]] = {k: [] for k in calls}
-    for r in range(rounds):
-        for name, call in calls.items():
-            if name in slow and r >= 3:
-                continue
-            for k in range(per_round if name not in slow else 3):
-                frame = singles[(r * per_round + k) % len(singles)]
-                start = time.perf_counter()
-                call(frame)
-                one[name].append(time.perf_counter() - start)
-            start = time.perf_counter()
-            call(big)
-            batch[name].append((time.perf_counter() - start) / len(big))
+    timed_calls: dict[str, Callable[[np.ndarray], Any]] = {}
+    for name, call in calls.items():  # each round: the frames one by one, then the batch
+        timed_calls[f"{name}|b1"], timed_calls[f"{name}|b1024"] = call, _batch_of(call, big)
+    times = interleaved_times(
+        timed_calls,
+        singles,
+        rounds={k: 3 if k.split("|")[0] in slow else rounds for k in timed_calls},
+        per_round={k: 1 if k.endswith("b1024") else 3 if k.split("|")[0] in slow else per_round for k in timed_calls},
+        warmup=0,
+    )
     out = {}
     for name in calls:
-        b1, per_frame = float(np.median(one[name]) * 1e6), float(np.median(batch[name]) * 1e6)
+        b1 = summary_us(times[f"{name}|b1"])["median_us"]
+        per_frame = summary_us(times[f"{name}|b1024"])["median_us"] / len(big)
         out[name] = {"b1_us": b1, "b1024_us_per_frame": per_frame, "overhead_ratio": b1 / per_frame}
     return out
 
@@ -114,6 +115,17 @@ def idle_mixed(scene: Scene, n: int, idle_share: float, seed: int = 31) -> tuple
     return frames, order >= n_idle
 
 
+def _frame_by_frame(
+    stream: Any, singles: list[np.ndarray], outputs: dict[str, np.ndarray], way: str
+) -> Callable[[np.ndarray], Any]:
+    """A pass of ``stream`` over ``singles`` one frame at a time; its results land in ``outputs[way]``."""
+
+    def run(_frame: np.ndarray) -> None:
+        outputs[way] = np.concatenate([stream.predict(f) for f in singles])
+
+    return run
+
+
 def bench_gating(model_name: str, n: int, idle_share: float, repeats: int) -> dict[str, Any]:
     from tactile_learn.frame_stream import FrameStream
 
@@ -121,16 +133,12 @@ def bench_gating(model_name: str, n: int, idle_share: float, repeats: int) -> di
     frames, touched = idle_mixed(est.card_scene_, n, idle_share)
     ways = {"ungated": FrameStream(est), "gated": FrameStream(est, gate=True)}
     singles = [frames[i : i + 1] for i in range(n)]
-    seconds: dict[str, list[float]] = {f"{w} {mode}": [] for w in ways for mode in ("b1", "b1024")}
     outputs: dict[str, np.ndarray] = {}
-    for _ in range(repeats):
-        for way, stream in ways.items():
-            start = time.perf_counter()
-            outputs[way] = np.concatenate([stream.predict(f) for f in singles])
-            seconds[f"{way} b1"].append(time.perf_counter() - start)
-            start = time.perf_counter()
-            stream.run(frames, batch=1024)
-            seconds[f"{way} b1024"].append(time.perf_counter() - start)
+    passes: dict[str, Callable[[np.ndarray], Any]] = {}
+    for way, stream in ways.items():  # each a whole pass over the frames: one by one, then in batches
+        passes[f"{way} b1"] = _frame_by_frame(stream, singles, outputs, way)
+        passes[f"{way} b1024"] = _batch_of(partial(stream.run, batch=1024), frames)
+    seconds = interleaved_times(passes, np.zeros(1), rounds=repeats, warmup=0)
     fps = {k: n / float(np.median(v)) for k, v in seconds.items()}
     gate = ways["gated"].gate
     assert gate is not None
@@ -197,20 +205,16 @@ def bench_skins(n: int, rounds: int, per_round: int) -> dict[str, Any]:
     ):
         metrics = strip_map_metrics(pred, truth, small.sensor.geometry.pitch_mm)
         quality[label] = {"pearson_r_mean": metrics["pearson_r_mean"], "cross_r_mean": cross_r(pred, truth)}
-    timing = {}
-    for label, call, readings in (
-        ("16x16 strips16", model.predict, frames_small["readings"]),
-        ("128x128 skin", skin.predict, frames_large["readings"]),
-    ):
-        timing[label] = np.ascontiguousarray(readings, dtype=np.float32), call
-    times: dict[str, list[float]] = {k: [] for k in timing}
-    for r in range(rounds):
-        for label, (readings, call) in timing.items():
-            for k in range(per_round):
-                frame = readings[(r * per_round + k) % n][None]
-                start = time.perf_counter()
-                call(frame)
-                times[label].append(time.perf_counter() - start)
+    times = interleaved_times(
+        {"16x16 strips16": model.predict, "128x128 skin": skin.predict},
+        {
+            "16x16 strips16": np.ascontiguousarray(frames_small["readings"], dtype=np.float32),
+            "128x128 skin": np.ascontiguousarray(frames_large["readings"], dtype=np.float32),
+        },
+        rounds=rounds,
+        per_round=per_round,
+        warmup=0,
+    )
     b1 = {k: float(np.median(v) * 1e6) for k, v in times.items()}
     return {
         "frames": n,
@@ -274,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
     result["command"] = "python scripts/latency_overhead.py " + " ".join(argv if argv is not None else sys.argv[1:])
     print(f"load average (1 min) before / after: {result['load_average_1min']}")
     if args.json:
-        atomic_write_text(args.json, json.dumps(result, indent=2) + "\n")
+        atomic_write_json(args.json, result)
     return 0
 
 

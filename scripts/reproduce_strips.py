@@ -11,15 +11,15 @@ other metrics) for every classical estimator, beside the paper's values.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
-from pathlib import Path
+from functools import partial
 
 from synth.dataset import simulate_shard
+from synth.io import atomic_write_json
 from synth.scene import load_scene
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
+from tactile_learn.timing import timed
 
 PAPER = {"strips16": 0.86, "strips5": 0.92}
 
@@ -38,8 +38,7 @@ def main(argv: list[str] | None = None) -> int:
         extra = {k: v for k, v in arrays.items() if k.startswith("latent_")}
         data = EvalData(arrays["readings"], {"pressure": arrays["pressure"]}, scene, extra, f"{name} seed {args.seed}")
         for method, factory in task.classical_methods().items():
-            start = time.perf_counter()
-            metrics = task.evaluate(factory(scene), data)
+            metrics, seconds = timed(partial(task.evaluate, factory(scene), data))
             rows.append(
                 {
                     "scene": name,
@@ -49,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
                     "pearson_r_median": metrics["pearson_r_median"],
                     "nrmse": metrics["nrmse"],
                     "peak_err_mm_median": metrics["peak_err_mm_median"],
-                    "seconds": time.perf_counter() - start,
+                    "seconds": seconds,
                 }
             )
     print(
@@ -62,8 +61,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['pearson_r_median']:8.3f} {r['nrmse']:6.3f} {r['peak_err_mm_median']:11.2f}"
         )
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"n": args.n, "seed": args.seed, "rows": rows}, indent=2) + "\n")
+        atomic_write_json(args.json, {"n": args.n, "seed": args.seed, "rows": rows})
     return 0
 
 

@@ -40,9 +40,9 @@ strips16() {  # the general model (the default): the whole shape library, 1-4 co
   # flag thresholds calibrated on the general distribution, not on the last cycle's
   $TL export runs/strips16_soup --out models/strips16.onnx --test data/mixed-test --calibration data/mixed-val
   data strips16 4000 3 strips16-test; data strips16_twins 4000 3 strips16_twins-test
-  $PY scripts/card_metrics.py --model models/strips16.onnx --name two_spheres --data data/strips16-test
-  $PY scripts/card_metrics.py --model models/strips16.onnx --name strips16_twins --data data/strips16_twins-test
-  $PY scripts/card_metrics.py --model models/strips16.onnx --name strips16_ood --suite strips16_ood
+  $TL cards add --model models/strips16.onnx --name two_spheres --data data/strips16-test
+  $TL cards add --model models/strips16.onnx --name strips16_twins --data data/strips16_twins-test
+  $TL cards add --model models/strips16.onnx --name strips16_ood --suite strips16_ood
 }
 
 strips16_small() {  # the fast general model (issue 15): strips16 shrunk to size tiny, then fine-tuned
@@ -56,9 +56,9 @@ strips16_small() {  # the fast general model (issue 15): strips16 shrunk to size
     --val-limit 2000 --init runs/strips16_small_init.pt --quiet
   $TL export runs/strips16_small --out models/strips16_small.onnx --test data/mixed-test --calibration data/mixed-val
   data strips16 4000 3 strips16-test; data strips16_twins 4000 3 strips16_twins-test
-  $PY scripts/card_metrics.py --model models/strips16_small.onnx --name two_spheres --data data/strips16-test
-  $PY scripts/card_metrics.py --model models/strips16_small.onnx --name strips16_twins --data data/strips16_twins-test
-  $PY scripts/card_metrics.py --model models/strips16_small.onnx --name strips16_ood --suite strips16_ood
+  $TL cards add --model models/strips16_small.onnx --name two_spheres --data data/strips16-test
+  $TL cards add --model models/strips16_small.onnx --name strips16_twins --data data/strips16_twins-test
+  $TL cards add --model models/strips16_small.onnx --name strips16_ood --suite strips16_ood
 }
 
 strips16_spheres() {  # the two-sphere specialist (first architecture): better on strips16 only, never the default
@@ -66,7 +66,7 @@ strips16_spheres() {  # the two-sphere specialist (first architecture): better o
   $TL train --task strips --data data/strips16-train --val data/strips16-val --out runs/strips16_large --size v1_large \
     --threads 1 --quiet
   ship strips16_large strips16_spheres strips16-test
-  $PY scripts/card_metrics.py --model models/strips16_spheres.onnx --name strips16_ood --suite strips16_ood
+  $TL cards add --model models/strips16_spheres.onnx --name strips16_ood --suite strips16_ood
 }
 
 strips5() {

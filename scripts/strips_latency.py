@@ -8,17 +8,15 @@ the load average before and after (latency floors are measured on a quiet machin
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import time
-
-import numpy as np
 
 from synth.dataset import simulate_shard
+from synth.io import atomic_write_json
 from synth.scene import load_scene
 from tactile_learn.methods import resolve_method
 from tactile_learn.strips_guard import CheckedStripModel
+from tactile_learn.timing import interleaved_times, summary_us
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,22 +32,14 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.models:
         methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
     methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1)
-    times: dict[str, list[float]] = {k: [] for k in methods}
-    for est in methods.values():  # warm-up: sessions, caches
-        for i in range(50):
-            est.predict(readings[i : i + 1])
     load_before = os.getloadavg()
-    for r in range(args.rounds):
-        for name, est in methods.items():
-            for k in range(args.per_round):
-                frame = readings[(r * args.per_round + k) % len(readings)][None]
-                start = time.perf_counter()
-                est.predict(frame)
-                times[name].append(time.perf_counter() - start)
+    calls = {name: est.predict for name, est in methods.items()}
+    times = interleaved_times(calls, readings, rounds=args.rounds, per_round=args.per_round, warmup=50)
     load_after = os.getloadavg()
+    summaries = {k: summary_us(v) for k, v in times.items()}
     result = {
-        "median_us": {k: float(np.median(v) * 1e6) for k, v in times.items()},
-        "p90_us": {k: float(np.percentile(v, 90) * 1e6) for k, v in times.items()},
+        "median_us": {k: v["median_us"] for k, v in summaries.items()},
+        "p90_us": {k: v["p90_us"] for k, v in summaries.items()},
         "calls_per_method": args.rounds * args.per_round,
         "load_average_1min": [load_before[0], load_after[0]],
         "command": "python scripts/strips_latency.py " + " ".join(argv if argv is not None else sys.argv[1:]),
@@ -58,9 +48,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:40s} median {result['median_us'][name]:8.1f} us   p90 {result['p90_us'][name]:8.1f} us")
     print(f"load average (1 min) before / after: {load_before[0]:.2f} / {load_after[0]:.2f}")
     if args.json:
-        from synth.io import atomic_write_json
-
-        atomic_write_json(args.json, json.loads(json.dumps(result)))
+        atomic_write_json(args.json, result)
     return 0
 
 

@@ -14,23 +14,23 @@ the load average before and after is recorded (floors are read on a quiet machin
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from synth.dataset import simulate_shard
+from synth.io import atomic_write_json, atomic_write_text
 from synth.scene import load_scene
 from synth.suite import load_suite
 from tactile_learn.bench import BENCH_SEED
-from tactile_learn.export import portable_path
 from tactile_learn.methods import resolve_method
+from tactile_learn.provenance import portable_path
 from tactile_learn.suites import evaluate_suite, suite_eval_data
 from tactile_learn.tasks import get_task
+from tactile_learn.timing import interleaved_times, summary_us, timed
 
 CLASSICAL = ("intersection", "projection")
 #: issue 12's floors for the default model
@@ -67,6 +67,12 @@ def floors(families: dict[str, dict[str, Any]], model: str, two_sphere_r: float)
     }
 
 
+def _warm_up(call: Any, readings: np.ndarray, n: int = 20) -> float:
+    """Mean seconds of ``n`` batch-1 calls (the first ones: sessions and caches are built)."""
+    _, seconds = timed(lambda: [call(readings[i : i + 1]) for i in range(n)])
+    return seconds / n
+
+
 def latencies(methods: dict[str, Any], rounds: int, per_round: int) -> dict[str, dict[str, float]]:
     """Median and p90 per call at batch 1, ``predict`` and (ONNX) the bare session, interleaved."""
     readings = simulate_shard(load_scene("strips16"), BENCH_SEED, 0, 512)["readings"].astype(np.float32)
@@ -77,26 +83,17 @@ def latencies(methods: dict[str, Any], rounds: int, per_round: int) -> dict[str,
         if session is not None:
             input_name, output_name = est.card_["inputs"][0]["name"], est.card_["outputs"][0]["name"]
             calls[f"{name}|session"] = lambda x, s=session, i=input_name, o=output_name: s.run([o], {i: x})
-    repeats = {}
-    for key, call in calls.items():  # warm-up: sessions, caches
-        start = time.perf_counter()
-        for i in range(20):
-            call(readings[i : i + 1])
-        # a slow method (the projection's iterative solver: tens of ms) gets one call per round
-        repeats[key] = per_round if time.perf_counter() - start < 20 * 2e-3 else 1
-    times: dict[str, list[float]] = {k: [] for k in calls}
-    for r in range(rounds):
-        for key, call in calls.items():
-            for k in range(repeats[key]):
-                frame = readings[(r * per_round + k) % len(readings)][None]
-                start = time.perf_counter()
-                call(frame)
-                times[key].append(time.perf_counter() - start)
+    # warm-up (sessions, caches); a slow method (the projection's iterative solver: tens of ms a call)
+    # gets one call per round
+    warm = {key: _warm_up(call, readings) for key, call in calls.items()}
+    repeats = {key: per_round if seconds < 2e-3 else 1 for key, seconds in warm.items()}
+    times = interleaved_times(calls, readings, rounds=rounds, per_round=repeats, warmup=0)
     out: dict[str, dict[str, float]] = {}
     for key, values in times.items():
         name, kind = key.split("|")
-        out.setdefault(name, {})[f"{kind}_median_us"] = float(np.median(values) * 1e6)
-        out[name][f"{kind}_p90_us"] = float(np.percentile(values, 90) * 1e6)
+        summary = summary_us(values)
+        out.setdefault(name, {})[f"{kind}_median_us"] = summary["median_us"]
+        out[name][f"{kind}_p90_us"] = summary["p90_us"]
     return out
 
 
@@ -208,10 +205,9 @@ def main(argv: list[str] | None = None) -> int:
     result["two_spheres_data"] = portable_path(args.two_spheres)
     result["command"] = "python scripts/strips_pareto.py " + " ".join(argv if argv is not None else sys.argv[1:])
     out = Path(args.json)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1, default=float))
+    atomic_write_json(out, result)
     table = markdown(result)
-    out.with_suffix(".md").write_text(table + "\n")
+    atomic_write_text(out.with_suffix(".md"), table + "\n")
     plotted = plot(result, out.with_suffix(".png"))
     print(table)
     for name, f in result["floors"].items():

@@ -13,11 +13,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
-from pathlib import Path
+from functools import partial
 
+from synth.io import atomic_write_json
 from tactile_learn.methods import resolve_method
 from tactile_learn.tasks.thermal import ThermalTask, class_names, thermal_metrics, view
+from tactile_learn.timing import timed
 
 
 def main() -> None:
@@ -38,8 +39,8 @@ def main() -> None:
         for duration in args.duration:
             x, valid = view(data, duration)
             keep = valid & contact
-            start = time.perf_counter()
-            metrics = thermal_metrics(estimator.predict(x[keep]), labels[keep], materials)
+            predicted, seconds = timed(partial(estimator.predict, x[keep]))
+            metrics = thermal_metrics(predicted, labels[keep], materials)
             n = int(keep.sum())
             row = {
                 "method": method,
@@ -47,12 +48,12 @@ def main() -> None:
                 "n_contact_pixels": n,
                 "accuracy": metrics["accuracy"],
                 "errors": round((1.0 - metrics["accuracy"]) * n),
-                "seconds": time.perf_counter() - start,
+                "seconds": seconds,
             }
             rows.append(row)
             print(json.dumps(row), flush=True)
     if args.json:
-        Path(args.json).write_text(json.dumps({"data": args.data, "rows": rows}, indent=2) + "\n")
+        atomic_write_json(args.json, {"data": args.data, "rows": rows})
 
 
 if __name__ == "__main__":

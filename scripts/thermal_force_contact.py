@@ -23,7 +23,7 @@ import json
 import math
 import sys
 import tempfile
-import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +33,13 @@ from scipy import optimize
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from thermal_robot_protocol import robot_data, split
 
+from synth.io import atomic_write_json, json_dumps
 from synth.materials import get_material
 from synth.sensors.thermal.dynamics import channel_terms
 from tactile_learn import thermal_calibration as calibration
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings
+from tactile_learn.timing import timed
 
 #: the force term's time step: the fitting grid divided by this
 SUB = 5
@@ -160,16 +162,12 @@ def main(argv: list[str] | None = None) -> int:
         ("ramp_contact", calibration._Problem(fit_touches, materials, True)),
         ("force_contact", ForceContact(fit_touches, materials, forces)),
     ):
-        started = time.perf_counter()
-        result[name] = fit(problem)
-        result[name]["seconds"] = time.perf_counter() - started
+        result[name], seconds = timed(partial(fit, problem))
+        result[name]["seconds"] = seconds
         print(name, json.dumps(result[name]["rms_mk"]), flush=True)
-    text = json.dumps(result, indent=2)
     if args.json:
-        from synth.io import atomic_write_text
-
-        atomic_write_text(args.json, text + "\n")
-    print(text)
+        atomic_write_json(args.json, result)
+    print(json_dumps(result))
     return 0
 
 

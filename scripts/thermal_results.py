@@ -14,25 +14,22 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from synth.io import atomic_write_json
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks.thermal import ThermalTask, oracle_accuracy_by_duration
+from tactile_learn.timing import interleaved_times, summary_us, timed
 
 
 def latency_ms(estimator: Estimator, x: np.ndarray, repeats: int = 30) -> float:
-    """Median wall time of ``predict`` on one curve (batch 1), in ms."""
-    times = []
-    estimator.predict(x[:1])  # warm-up (libraries, caches)
-    for i in range(repeats):
-        start = time.perf_counter()
-        estimator.predict(x[i % len(x) : i % len(x) + 1])
-        times.append(time.perf_counter() - start)
-    return 1e3 * float(np.median(times))
+    """Median wall time of ``predict`` on one curve (batch 1), in ms, after a warm-up call."""
+    times = interleaved_times({"predict": estimator.predict}, x, rounds=repeats, warmup=1)
+    return summary_us(times["predict"])["median_us"] / 1e3
 
 
 def main() -> int:
@@ -56,15 +53,14 @@ def main() -> int:
     result: dict[str, Any] = {"data": args.data, "scene": data.scene.name, "n_pixels": len(data), "methods": {}}
     probe = data.inputs[:64]
     for name, est in methods.items():
-        start = time.perf_counter()
-        metrics = task.evaluate(est, data)
+        metrics, eval_seconds = timed(partial(task.evaluate, est, data))
         result["methods"][name] = {
             "accuracy": metrics["accuracy"],
             "accuracy_by_duration": metrics["accuracy_by_duration"],
             "family_accuracy_by_duration": metrics["family_accuracy_by_duration"],
             "contact_accuracy_by_duration": metrics["contact_accuracy_by_duration"],
             "confusion_pairs": metrics["confusion_pairs"][:8],
-            "eval_seconds": time.perf_counter() - start,
+            "eval_seconds": eval_seconds,
             "latency_ms_batch1": latency_ms(est, probe),
         }
         print(name, json.dumps({k: result["methods"][name][k] for k in ("accuracy_by_duration", "latency_ms_batch1")}))
@@ -72,8 +68,7 @@ def main() -> int:
         result.update(oracle_accuracy_by_duration(data))
         print("oracle", json.dumps(result["oracle_accuracy_by_duration"]))
     if args.json:
-        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps(result, indent=2))
+        atomic_write_json(args.json, result)
     return 0
 
 

@@ -18,7 +18,6 @@ CW cooled wood). The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -26,6 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from synth.io import atomic_write_json
 from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_evaluate
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
@@ -147,11 +147,8 @@ def main(argv: list[str] | None = None) -> int:
         "durations_s": list(DURATIONS),
         "sessions": results,
     }
-    text = json.dumps(summary, indent=2, default=float)
     if args.json:
-        from synth.io import atomic_write_text
-
-        atomic_write_text(args.json, text + "\n")
+        atomic_write_json(args.json, summary)
     for r in results:
         for channels in ("heated", "all"):
             print(f"\n{r['labelled']} labelled, channels {channels}: accuracy at {', '.join(map(_key, DURATIONS))} s")

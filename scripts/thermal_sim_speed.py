@@ -7,6 +7,11 @@ median touches/s over the repeats (wall clock and CPU time), the median of the p
 whether the two paths' arrays are byte-identical, and the largest difference of their clean
 (noise-free) curves. One thread (BLAS/OpenMP pinned), as a dataset worker runs.
 
+A third path, ``training``, is what ``train --stream --stream-pixels 4`` simulates: the same
+touches with only the 4 pixels per touch that training reads (``synth.sensors.thermal.subset``);
+its rate is given in touches/s (4 pixel curves each, the curves training takes from a touch) and
+in pixel curves/s, beside the whole-array paths' (16 curves per touch, 4 of them read).
+
     python scripts/thermal_sim_speed.py                       # results/thermal_sim_speed.json
     python scripts/thermal_sim_speed.py --scene thermal_wns --repeats 5 --json /dev/stdout
 """
@@ -29,10 +34,17 @@ from synth.io import atomic_write_json  # noqa: E402
 from synth.scene import load_scene  # noqa: E402
 from synth.sensors.thermal import make_simulator  # noqa: E402
 
+#: pixels per touch training reads (tactile_learn.tasks.thermal trains on 4 random pixels of a touch)
+TRAIN_PIXELS = 4
+
 
 def measure(scene_name: str, touches: int, repeats: int) -> dict[str, Any]:
     scene = load_scene(scene_name)
-    paths = {"reference": make_simulator(scene, reference=True), "fast": make_simulator(scene)}
+    paths = {
+        "reference": make_simulator(scene, reference=True),
+        "fast": make_simulator(scene),
+        "training": make_simulator(scene, pixels=TRAIN_PIXELS),
+    }
     for sim in paths.values():  # warm-up: imports, caches
         sim.simulate(16, np.random.default_rng(0))
     wall: dict[str, list[float]] = {k: [] for k in paths}
@@ -47,7 +59,7 @@ def measure(scene_name: str, touches: int, repeats: int) -> dict[str, Any]:
             wall[name].append(time.perf_counter() - w0)
             cpu[name].append(time.process_time() - c0)
         identical &= all(np.array_equal(outs["fast"][k], outs["reference"][k]) for k in outs["reference"])
-    clean = {k: make_simulator(scene.with_noise(False), reference=(k == "reference")) for k in paths}
+    clean = {k: make_simulator(scene.with_noise(False), reference=(k == "reference")) for k in ("reference", "fast")}
     draws = clean["fast"].draw(min(touches, 256), np.random.default_rng(7))
     diff = float(np.abs(clean["fast"].clean_readings(draws) - clean["reference"].clean_readings(draws)).max())
     cfg = scene.sensor
@@ -60,13 +72,18 @@ def measure(scene_name: str, touches: int, repeats: int) -> dict[str, Any]:
         "identical_bytes": bool(identical),
         "clean_max_abs_diff_k": diff,
     }
+    curves = {"reference": cfg.n_pixels, "fast": cfg.n_pixels, "training": TRAIN_PIXELS}
     for clock, times in (("wall", wall), ("cpu", cpu)):
         result[f"touches_per_s_{clock}"] = {k: round(touches / float(np.median(v)), 1) for k, v in times.items()}
-        ratios = np.array(times["reference"]) / np.array(times["fast"])
-        result[f"speedup_{clock}"] = round(float(np.median(ratios)), 2)
-        result[f"speedup_{clock}_range"] = [round(float(ratios.min()), 2), round(float(ratios.max()), 2)]
-        # the least disturbed repeat of each path (a busy machine slows some repeats a lot)
-        result[f"speedup_{clock}_best_of"] = round(float(np.min(times["reference"]) / np.min(times["fast"])), 2)
+        result[f"pixel_curves_per_s_{clock}"] = {
+            k: round(curves[k] * touches / float(np.median(v)), 1) for k, v in times.items()
+        }
+        for path, key in (("fast", "speedup"), ("training", "training_speedup")):
+            ratios = np.array(times["reference"]) / np.array(times[path])
+            result[f"{key}_{clock}"] = round(float(np.median(ratios)), 2)
+            result[f"{key}_{clock}_range"] = [round(float(ratios.min()), 2), round(float(ratios.max()), 2)]
+            # the least disturbed repeat of each path (a busy machine slows some repeats a lot)
+            result[f"{key}_{clock}_best_of"] = round(float(np.min(times["reference"]) / np.min(times[path])), 2)
     return result
 
 
@@ -92,7 +109,9 @@ def main() -> None:
             f"{r['touches_per_s_wall']['reference']} touches/s, fast {r['touches_per_s_wall']['fast']} touches/s "
             f"(wall), speed-up x{r['speedup_wall']} wall / x{r['speedup_cpu']} CPU (median of {r['repeats']}; best-of "
             f"x{r['speedup_wall_best_of']} / x{r['speedup_cpu_best_of']}), "
-            f"identical bytes: {r['identical_bytes']}, clean curves within {r['clean_max_abs_diff_k']:.1e} K"
+            f"identical bytes: {r['identical_bytes']}, clean curves within {r['clean_max_abs_diff_k']:.1e} K; "
+            f"training stream ({TRAIN_PIXELS} px/touch) {r['touches_per_s_wall']['training']} touches/s, "
+            f"x{r['training_speedup_wall']} wall / x{r['training_speedup_cpu']} CPU against the reference"
         )
     if args.json == "/dev/stdout":
         import json

@@ -67,9 +67,17 @@ def _request(scene: Scene, n: int, seed: int, shard_size: int) -> dict[str, Any]
     }
 
 
-def simulate_shard(scene: Scene, seed: int, index: int, size: int) -> dict[str, np.ndarray]:
-    """Arrays of shard ``index`` (``size`` samples), deterministic in (scene, seed, index, size)."""
-    simulator = sensor_module(scene.task).make_simulator(scene)
+def simulate_shard(scene: Scene, seed: int, index: int, size: int, pixels: int | None = None) -> dict[str, np.ndarray]:
+    """Arrays of shard ``index`` (``size`` samples), deterministic in (scene, seed, index, size);
+    ``pixels``: a thermal scene's touches with only that many random pixels read (training's
+    share: :mod:`synth.sensors.thermal.subset`)."""
+    module = sensor_module(scene.task)
+    if pixels is None:
+        simulator = module.make_simulator(scene)
+    elif scene.task == "thermal":
+        simulator = module.make_simulator(scene, pixels=pixels)
+    else:
+        raise ConfigError(f"pixels: only thermal scenes read a subset of pixels ({scene.name!r} is {scene.task!r})")
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
     parts: list[dict[str, np.ndarray]] = []
     for start in range(0, size, CHUNK):

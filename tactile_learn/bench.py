@@ -24,7 +24,6 @@ import platform
 import subprocess
 import sys
 import tempfile
-import time
 from collections.abc import Callable
 from functools import partial
 from pathlib import Path
@@ -37,10 +36,10 @@ from synth.dataset import generate
 from synth.errors import ConfigError
 from synth.scene import Scene, available_scenes, load_scene
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.methods import shipped_models
+from tactile_learn.methods import shipped_cards
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
-from tactile_learn.timing import time_predict
+from tactile_learn.timing import interleaved_times, time_predict, timed
 
 __all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info"]
 
@@ -97,18 +96,12 @@ def _bench_data(task_name: str, scene: Scene | None, n: int, data: str | None) -
 def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[[], Estimator]]]:
     """(label, factory) for every shipped model of the task whose scene matches: ORT 1 and 2
     threads, and torch eager when torch and the model's weights (NAME.pt) are available."""
-    from tactile_learn.runtime import read_card
-
     variants: list[tuple[str, Callable[[], Estimator]]] = []
-    for name, path in sorted(shipped_models(task_name).items()):
-        try:
-            card = read_card(path)
-        except Exception:  # a broken card is reported by eval, not by the benchmark
-            continue
+    for name, (path, card) in sorted(shipped_cards(task_name).items()):
         if card["scene_digest"] != scene.digest and not _same_sensor(task_name, card["scene"], scene):
             continue
         for threads in (1, 2):
-            variants.append((name, partial(_onnx_model, path, threads)))
+            variants.append((name, partial(_onnx_model, path, threads, card)))
         if "thresholds" in card.get("consistency", {}):  # the checked path: flags + fallback
             variants.append((f"{name}+check", partial(_checked_model, path)))
         weights = path.with_suffix(".pt")
@@ -128,10 +121,10 @@ def _same_sensor(task_name: str, card_scene: dict[str, Any], scene: Scene) -> bo
         return False
 
 
-def _onnx_model(path: Path, threads: int) -> Estimator:
+def _onnx_model(path: Path, threads: int, card: dict[str, Any]) -> Estimator:
     from tactile_learn.runtime import OnnxEstimator
 
-    return _named(OnnxEstimator(path, threads=threads), f"onnxruntime-{threads}t")
+    return _named(OnnxEstimator(path, threads=threads, card=card), f"onnxruntime-{threads}t")
 
 
 def _checked_model(path: Path) -> Estimator:
@@ -191,9 +184,7 @@ def bench_task(
         est = factory()
         if progress:
             progress(f"{task_name}: {label} [{est.backend}]")
-        start = time.perf_counter()
-        metrics = task.evaluate(est, frames)
-        eval_seconds = time.perf_counter() - start
+        metrics, eval_seconds = timed(partial(task.evaluate, est, frames))
         timing = time_predict(est.predict, task.latency_inputs(frames), repeats=repeats, budget_s=budget_s)
         results.append(
             {
@@ -322,31 +313,24 @@ def bench_simulator(
     *, quick: bool = False, scenes: list[str] | None = None, memory_n: int | None = None
 ) -> dict[str, Any]:
     """Samples/s of every scene's simulator (single process) and peak memory of a generation."""
-    from synth.sensors import sensor_module
 
-    rows = []
-    for name in scenes or available_scenes():
-        scene = load_scene(name)
-        sim = sensor_module(scene.task).make_simulator(scene)
-        rng = np.random.default_rng(BENCH_SEED)
-        n = 1024
-        sim.simulate(64, rng)  # warm-up: builds operators and caches
-        times: list[float] = []
-        deadline = time.perf_counter() + (0.5 if quick else 2.0)
-        while len(times) < 3 or (time.perf_counter() < deadline and len(times) < 50):
-            start = time.perf_counter()
-            sim.simulate(n, rng)
-            times.append(time.perf_counter() - start)
-        rows.append(
-            {
-                "scene": name,
-                "task": scene.task,
-                "samples_per_s": n / float(np.median(times)),
-                "repeats": len(times),
-            }
-        )
+    rows = [_simulator_rate(name, quick) for name in scenes or available_scenes()]
     memory = _generation_memory("strips16", memory_n or (20_000 if quick else 100_000))
     return {"task": "simulator", "machine": machine_info(), "scenes": rows, "generation": memory}
+
+
+def _simulator_rate(name: str, quick: bool, n: int = 1024) -> dict[str, Any]:
+    """Samples/s of one scene's simulator at ``n`` samples a call (median of timed calls)."""
+    from synth.sensors import sensor_module
+
+    scene = load_scene(name)
+    sim = sensor_module(scene.task).make_simulator(scene)
+    rng = np.random.default_rng(BENCH_SEED)
+    sim.simulate(64, rng)  # warm-up: builds operators and caches
+    times = interleaved_times(
+        {name: lambda _: sim.simulate(n, rng)}, np.zeros(1), rounds=50, warmup=0, budget_s=0.5 if quick else 2.0
+    )[name]
+    return {"scene": name, "task": scene.task, "samples_per_s": n / float(np.median(times)), "repeats": len(times)}
 
 
 def _generation_memory(scene: str, n: int, workers: int = 2) -> dict[str, Any]:

@@ -16,8 +16,6 @@
 from __future__ import annotations
 
 import json
-import shlex
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -30,13 +28,17 @@ from synth import __version__
 from synth.dataset import simulate_shard
 from synth.errors import ModelError
 from synth.io import atomic_open, atomic_write_json, sha256_file
-from synth.scene import Scene, parse_scene
-from tactile_learn.checkpoints import build_net, load_weights, save_torch
+from synth.scene import Scene
+from tactile_learn.cards import dataset_entry
+from tactile_learn.checkpoints import save_torch
 from tactile_learn.idle import IDLE_KEYS, measure_idle_floor
+from tactile_learn.provenance import command_line, portable_path
 from tactile_learn.runtime import CARD_FORMAT, METADATA_KEY, OnnxEstimator, card_path
 from tactile_learn.tasks import get_task
+from tactile_learn.tasks.base import Task
+from tactile_learn.torch_estimator import TorchEstimator
 
-__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "to_onnx"]
+__all__ = ["OPSET", "PARITY_TOL", "export", "parity_check", "portable_path", "to_onnx"]
 
 OPSET = 18
 #: max |onnx - torch| allowed, as a fraction of the torch output's range
@@ -93,22 +95,38 @@ def export(
     out = Path(out)
     if out.suffix != ".onnx":
         raise ModelError(f"--out: {out} must end in .onnx")
-    saved = load_weights(run)
-    task = get_task(saved["task"])
-    scene = parse_scene(saved["scene"], f"{run}/model.pt")
-    net = build_net(saved, scene)
+    trained = TorchEstimator.from_checkpoint(run)
+    saved, task, scene = trained.checkpoint, get_task(trained.task_name), trained.scene
+    exported = _write_onnx(trained.net, task, scene, saved, out)
+    card = _card(out, name, task, scene, saved, trained.net, exported)
+    # the torch weights beside the ONNX file: bench's torch-eager backend and fine-tuning use them
+    save_torch(
+        out.with_suffix(".pt"),
+        {"task": task.name, "size": saved["size"], "stats": saved["stats"], "state_dict": saved["state_dict"]},
+    )
+    # write the card first without held-out metrics, so the runtime can load the model to measure them
+    atomic_write_json(card_path(out), card)
+    calibrate_on = str(calibration) if calibration is not None else saved["result"]["config"].get("val")
+    _add_card_extras(card, out, task, scene, calibrate_on)
+    if test is not None:
+        _add_heldout_metrics(card, out, task, test, command)
+    return card
+
+
+def _write_onnx(net: torch.nn.Module, task: Task, scene: Scene, saved: dict[str, Any], out: Path) -> dict[str, Any]:
+    """The task's export graph written to ``out`` once it passes the parity check (nothing is written
+    under ``out`` otherwise); returns the parity report, output names and shapes, and the metadata."""
     graph, output_names = task.export_module(net, scene)
     graph.eval()
     inputs = _probe_inputs(task.name, scene, 64)
     example = torch.from_numpy(inputs[:2])
     with torch.inference_mode():
         out_shapes = [list(o.shape[1:]) for o in _as_tuple(graph(example))]
-    out_shape = out_shapes[0]
     metadata = {
         "task": task.name,
         "scene_digest": scene.digest,
         "input_shape": list(task.input_shape(scene)),
-        "output_shape": out_shape,
+        "output_shape": out_shapes[0],
         "normalisation": saved["stats"],
         "size": saved["size"],
         "package_version": __version__,
@@ -126,8 +144,21 @@ def export(
         out.parent.mkdir(parents=True, exist_ok=True)
         with atomic_open(out, "wb") as handle:
             handle.write(tmp_model.read_bytes())
+    return {"parity": parity, "output_names": output_names, "out_shapes": out_shapes, "metadata": metadata}
+
+
+def _card(
+    out: Path,
+    name: str | None,
+    task: Task,
+    scene: Scene,
+    saved: dict[str, Any],
+    net: torch.nn.Module,
+    exported: dict[str, Any],
+) -> dict[str, Any]:
+    """The model card of the ONNX file ``out``: its interface, network, scene, training and validation."""
     result = saved["result"]
-    card: dict[str, Any] = {
+    return {
         "format": CARD_FORMAT,
         "name": name or out.stem,
         "task": task.name,
@@ -139,14 +170,14 @@ def export(
         "inputs": [
             {
                 "name": task.input_key,
-                "shape": ["batch", *metadata["input_shape"]],
+                "shape": ["batch", *exported["metadata"]["input_shape"]],
                 "dtype": "float32",
                 **task.input_layout(scene),
             }
         ],
         "outputs": [
-            {"name": name, "shape": ["batch", *shape], "dtype": "float32"}
-            for name, shape in zip(output_names, out_shapes, strict=True)
+            {"name": output, "shape": ["batch", *shape], "dtype": "float32"}
+            for output, shape in zip(exported["output_names"], exported["out_shapes"], strict=True)
         ],
         "normalisation": saved["stats"],
         "network": {"size": saved["size"], "parameters": int(sum(p.numel() for p in net.parameters()))},
@@ -163,64 +194,32 @@ def export(
                 k: _portable_paths(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
             },
         },
-        "parity": parity,
+        "parity": exported["parity"],
         "metrics": {"validation": result["val_metrics"]},
         "exported": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
-    # the torch weights beside the ONNX file: bench's torch-eager backend and fine-tuning use them
-    save_torch(
-        out.with_suffix(".pt"),
-        {"task": task.name, "size": saved["size"], "stats": saved["stats"], "state_dict": saved["state_dict"]},
-    )
-    # write the card first without held-out metrics, so the runtime can load the model to measure them
-    atomic_write_json(card_path(out), card)
-    calibrate_on = str(calibration) if calibration is not None else result["config"].get("val")
+
+
+def _add_card_extras(card: dict[str, Any], out: Path, task: Task, scene: Scene, calibrate_on: str | None) -> None:
+    """The task's own card entries, measured with the exported model (e.g. the strips flag
+    thresholds, calibrated on the run's validation frames) and the sensor's idle noise floor."""
     extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
     if task.name in IDLE_KEYS:  # the sensor's noise floor at rest: the stream's idle gate
         extras["idle"] = measure_idle_floor(scene)
-    if extras:  # e.g. the strips flag threshold, calibrated on the run's validation frames
+    if extras:
         card.update(extras)
         atomic_write_json(card_path(out), card)
-    if test is not None:
-        data = task.load_eval_data(test)
-        metrics = task.evaluate(OnnxEstimator(out), data)
-        card["metrics"]["heldout"] = {
-            "data": {"path": portable_path(test), "seed": _dataset_seed(test), "n_frames": len(data)},
-            "values": metrics,
-            "command": command or _command_line(),
-        }
-        atomic_write_json(card_path(out), card)
-    return card
 
 
-def portable_path(path: str | Path) -> str:
-    """``path`` as it may appear in a shipped card: relative to the working folder when inside it,
-    else only its name (a card never records a path of the machine it was made on)."""
-    p = Path(path)
-    if not p.is_absolute():
-        return p.as_posix()
-    try:
-        return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
-    except ValueError:
-        return p.name
+def _add_heldout_metrics(card: dict[str, Any], out: Path, task: Task, test: str | Path, command: str | None) -> None:
+    """Metrics of the exported model on the held-out dataset ``test``, with what regenerates it."""
+    card["metrics"]["heldout"] = {**dataset_entry(task.name, out, test), "command": command or command_line()}
+    atomic_write_json(card_path(out), card)
 
 
 def _portable_paths(paths: str | list[str] | tuple[str, ...]) -> str | list[str]:
     """A run's training data: one folder, or several read as one training set."""
     return portable_path(paths) if isinstance(paths, str) else [portable_path(p) for p in paths]
-
-
-def _dataset_seed(path: str | Path) -> int | None:
-    manifest = Path(path) / "manifest.json"
-    if manifest.is_file():
-        seed = json.loads(manifest.read_text()).get("seed")
-        return int(seed) if seed is not None else None
-    return None
-
-
-def _command_line() -> str:
-    args = [portable_path(a) if Path(a).is_absolute() else a for a in sys.argv[1:]]
-    return "tactile-learn " + " ".join(shlex.quote(a) for a in args)
 
 
 def _strip_debug_info(model: Any) -> None:

@@ -68,11 +68,21 @@ class OnnxEstimator(Estimator):
     kind = "learned"
     backend = "onnxruntime"
 
-    def __init__(self, path: str | Path, threads: int = 1, verify: bool = True, scene: Scene | None = None) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        threads: int = 1,
+        verify: bool = True,
+        scene: Scene | None = None,
+        card: dict[str, Any] | None = None,
+    ) -> None:
         self.path = path
         self.threads = threads
         self.verify = verify
         self.scene = scene
+        #: the card as :func:`read_card` returned it, when the caller has read it already (the method
+        #: loader reads each card once); ``None``: read beside ``path``
+        self.card = card
         self.name = Path(path).name
 
     @cached_property
@@ -82,7 +92,7 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{model}: model file not found")
         if model.stat().st_size == 0:
             raise ModelError(f"{model}: model file is empty")
-        card = read_card(model)
+        card = self.card if self.card is not None else read_card(model)
         if self.verify and sha256_file(model) != card["model_sha256"]:
             raise ModelError(
                 f"{model}: checksum differs from its card's: the file is corrupt or belongs to another card"

@@ -13,6 +13,12 @@ for the same ``--seed``). Either way an epoch's shard order and the order within
 shuffled with the epoch's generator, as :meth:`~synth.dataset.Dataset.iter_batches` does. The next
 shard is simulated in a background thread while the current one trains (numpy and torch release
 the GIL in their loops).
+
+Only what training reads. The thermal task trains on a few random pixels of every touch
+(``tactile_learn.tasks.thermal``: 4 of a 4 x 4 array); ``pixels=4`` simulates just those
+(:mod:`synth.sensors.thermal.subset`: the scene's touches, 4 random pixels each, about a quarter of
+the work), and the pixel curves trained on have the full array's distribution. Such a stream is
+no longer a dataset's shards byte for byte (its pixels are chosen before the noise is drawn).
 """
 
 from __future__ import annotations
@@ -35,7 +41,15 @@ __all__ = ["TouchStream"]
 class TouchStream:
     """``n`` samples per epoch of ``scene``, simulated from ``seed`` (see the module docstring)."""
 
-    def __init__(self, scene: Scene, n: int, seed: int, shard_size: int = 8192, fresh: bool = True) -> None:
+    def __init__(
+        self,
+        scene: Scene,
+        n: int,
+        seed: int,
+        shard_size: int = 8192,
+        fresh: bool = True,
+        pixels: int | None = None,
+    ) -> None:
         for name, value, low in (("n", n, 1), ("seed", seed, 0), ("shard_size", shard_size, 1)):
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ConfigError(f"stream {name}: expected an integer >= {low}, got {value!r}")
@@ -44,6 +58,9 @@ class TouchStream:
         self._seed = seed
         self.shard_size = shard_size
         self.fresh = fresh
+        self.pixels = pixels
+        if pixels is not None:  # refused here, not in the first shard's worker: the scene and the count
+            simulate_shard(scene, seed, 0, 0, pixels)
         self.sizes = [min(shard_size, n - i * shard_size) for i in range(math.ceil(n / shard_size))]
         self.shards: list[dict[str, Any]] = [{"n": size} for size in self.sizes]
         self.keys: list[str] = list(sensor_module(scene.task).make_simulator(scene).output_specs())
@@ -64,13 +81,14 @@ class TouchStream:
             "n": self.n,
             "shard_size": self.shard_size,
             "fresh": self.fresh,
+            **({"pixels_per_touch": self.pixels} if self.pixels is not None else {}),
         }
 
     def _shard(self, index: int) -> dict[str, np.ndarray]:
         last = self._last
         if last is not None and last[0] == index:
             return last[1]
-        arrays = simulate_shard(self.scene, self._seed, index, self.sizes[index % len(self.sizes)])
+        arrays = simulate_shard(self.scene, self._seed, index, self.sizes[index % len(self.sizes)], self.pixels)
         self._last = (index, arrays)
         return arrays
 

@@ -1,19 +1,89 @@
-"""The one latency timer: every benchmark, script and report times ``predict`` with it.
+"""The one latency timer: every benchmark, script and report times its calls with it.
 
-Latency is measured per frame at batch 1 after warm-up calls (median and 99th percentile, in
-microseconds), and throughput at batch 1024 (frames per second, median of repeats). Medians, not
-means: a busy machine adds a long tail that says nothing about the method.
+- :func:`time_predict`: one estimator's latency per frame at batch 1 after warm-up calls (median and
+  99th percentile, in microseconds) and its throughput at batch 1024 (frames per second, median of
+  repeats): ``tactile-learn bench``.
+- :func:`interleaved_times`: several callables timed in turns (round ``r`` calls each one in turn), so
+  that a machine that gets busier or quieter during the run affects all of them alike: the timer of
+  every ratio of two methods measured in one run (scripts, the simulator benchmark).
+- :func:`summary_us`: median and tail of such times in microseconds.
+
+Medians, not means: a busy machine adds a long tail that says nothing about the method.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
 
 import numpy as np
 
-__all__ = ["time_predict"]
+__all__ = ["interleaved_times", "summary_us", "time_predict", "timed"]
+
+T = TypeVar("T")
+
+
+def timed(call: Callable[[], T]) -> tuple[T, float]:
+    """What ``call()`` returns, and the seconds it took (wall clock, ``perf_counter``)."""
+    start = time.perf_counter()
+    result = call()
+    return result, time.perf_counter() - start
+
+
+def _per_key(value: int | Mapping[str, int], key: str) -> int:
+    return value if isinstance(value, int) else value[key]
+
+
+def interleaved_times(
+    calls: Mapping[str, Callable[[np.ndarray], Any]],
+    inputs: np.ndarray | Mapping[str, np.ndarray],
+    *,
+    rounds: int | Mapping[str, int],
+    per_round: int | Mapping[str, int] = 1,
+    warmup: int = 20,
+    budget_s: float | None = None,
+    min_rounds: int = 3,
+) -> dict[str, np.ndarray]:
+    """Seconds per call of every callable, timed in turns.
+
+    Round ``r`` calls each callable ``per_round`` times on successive items of its inputs (item
+    ``(r * per_round + k) % n``, kept as a batch of one: ``inputs[i : i + 1]``); a callable with
+    fewer ``rounds`` of its own (a slow method) sits out the later rounds. ``warmup`` untimed calls
+    first (sessions, caches, lazily built state). ``budget_s``: stop after ``min_rounds`` rounds
+    once that many seconds have passed. ``inputs``: one array for all, or one per callable."""
+    own = {k: inputs if isinstance(inputs, np.ndarray) else inputs[k] for k in calls}
+    for key, call in calls.items():
+        for i in range(warmup):
+            call(own[key][i % len(own[key]) : i % len(own[key]) + 1])
+    times: dict[str, list[float]] = {k: [] for k in calls}
+    n_rounds = max(_per_key(rounds, k) for k in calls)
+    deadline = None if budget_s is None else time.perf_counter() + budget_s
+    for r in range(n_rounds):
+        if deadline is not None and r >= min_rounds and time.perf_counter() > deadline:
+            break
+        for key, call in calls.items():
+            if r >= _per_key(rounds, key):
+                continue
+            items, repeat = own[key], _per_key(per_round, key)
+            for k in range(repeat):
+                i = (r * repeat + k) % len(items)
+                frame = items[i : i + 1]
+                start = time.perf_counter()
+                call(frame)
+                times[key].append(time.perf_counter() - start)
+    return {k: np.asarray(v) for k, v in times.items()}
+
+
+def summary_us(seconds: np.ndarray) -> dict[str, float]:
+    """Median, 90th and 99th percentile of ``seconds`` in microseconds, and how many calls."""
+    us = np.asarray(seconds, dtype=np.float64) * 1e6
+    return {
+        "median_us": float(np.median(us)),
+        "p90_us": float(np.percentile(us, 90)),
+        "p99_us": float(np.percentile(us, 99)),
+        "calls": len(us),
+    }
 
 
 def time_predict(

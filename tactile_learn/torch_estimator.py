@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from synth.errors import ModelError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.tasks import get_task
@@ -21,13 +22,21 @@ class TorchEstimator(Estimator):
     backend = "torch"
 
     def __init__(
-        self, net: torch.nn.Module, task: str, scene: Scene, name: str = "torch", batch_size: int = 4096
+        self,
+        net: torch.nn.Module,
+        task: str,
+        scene: Scene,
+        name: str = "torch",
+        batch_size: int = 4096,
+        checkpoint: dict[str, Any] | None = None,
     ) -> None:
         self.net = net
         self.task_name = task
         self.scene = scene
         self.name = name
         self.batch_size = batch_size
+        #: what the weights file held besides the network (task, size, stats, a run's result)
+        self.checkpoint = checkpoint or {}
 
     @classmethod
     def from_checkpoint(
@@ -35,15 +44,20 @@ class TorchEstimator(Estimator):
     ) -> TorchEstimator:
         """The network of a finished run folder or a model's ``NAME.pt`` (see
         :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on);
-        ``threads`` sets torch's intra-op threads (process-wide)."""
+        ``threads`` sets torch's intra-op threads (process-wide). The one way from weights on disk to a
+        network: export, fine-tuning (``train --init``) and bench's torch backend all load through it."""
         from tactile_learn.checkpoints import build_net, load_weights, weights_scene
 
         saved = load_weights(source)
+        if scene is not None and scene.task != saved["task"]:
+            raise ModelError(
+                f"{source}: the weights are for task {saved['task']!r}, scene {scene.name!r} is {scene.task!r}"
+            )
         scene = scene or weights_scene(saved)
         if threads:
             torch.set_num_threads(threads)
-        label = name or (Path(source).with_suffix(".onnx").name if Path(source).is_file() else Path(source).name)
-        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label)
+        label = name or Path(source).name  # NAME.pt, or the run folder's name
+        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label, checkpoint=saved)
 
     def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:
         return self

@@ -25,7 +25,7 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -35,12 +35,13 @@ import torch
 from synth import __version__
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
-from synth.scene import load_scene
-from tactile_learn.checkpoints import MODEL, build_net, load_torch, load_weights, save_torch
+from synth.scene import Scene, load_scene
+from tactile_learn.checkpoints import MODEL, load_torch, save_torch
+from tactile_learn.distributed import TrainStep, broadcast, join_world, mean_over_ranks
 from tactile_learn.progress import progress_bar
 from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
-from tactile_learn.tasks.base import EvalData, readable_frames
+from tactile_learn.tasks.base import EvalData, Task, readable_frames
 from tactile_learn.torch_estimator import TorchEstimator
 from tactile_learn.training_sets import TrainingSet
 
@@ -72,6 +73,7 @@ class TrainConfig:
     stream_seed: int = 0
     shard_size: int = 8192
     fresh: bool = True  # a new ``stream`` samples every epoch (False: the same ones, as a dataset)
+    stream_pixels: int = 0  # thermal: simulate only this many random pixels per touch (0: all)
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -90,6 +92,8 @@ class TrainConfig:
             raise ConfigError("give either --data (a dataset folder) or --scene with --stream N (touches per epoch)")
         if bool(self.stream) != bool(self.scene):
             raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
+        if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
+            raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
 
 
 def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tuple[EvalData, float]:
@@ -133,43 +137,6 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
     return True
 
 
-class _TrainStep(torch.nn.Module):
-    """The task's training forward as a module's ``forward``: DDP synchronises gradients only for
-    what runs through the wrapped module's ``forward`` (a general strip net's ``train_outputs``)."""
-
-    def __init__(self, net: torch.nn.Module, task_name: str) -> None:
-        super().__init__()
-        self.net = net
-        self.task_name = task_name
-
-    def forward(self, x: torch.Tensor) -> Any:
-        return get_task(self.task_name).train_forward(self.net, x)
-
-
-def _world() -> tuple[int, int, bool]:
-    """(rank, world size, whether this call started the process group): torchrun's environment,
-    joined to a gloo process group (one already started is used as it is); (0, 1, False) without it."""
-    import torch.distributed as dist
-
-    if int(os.environ.get("WORLD_SIZE", "1")) <= 1 and not dist.is_initialized():
-        return 0, 1, False
-    started = not dist.is_initialized()
-    if started:
-        dist.init_process_group("gloo")
-    return dist.get_rank(), dist.get_world_size(), started
-
-
-def _broadcast(value: Any, world: int) -> Any:
-    """Rank 0's ``value`` on every rank."""
-    if world == 1:
-        return value
-    import torch.distributed as dist
-
-    box = [value]
-    dist.broadcast_object_list(box, src=0)
-    return box[0]
-
-
 def weights_digest(state_dict: dict[str, torch.Tensor]) -> str:
     """SHA-256 of a network's weights (names and bytes): equal digests, equal networks."""
     digest = hashlib.sha256()
@@ -184,7 +151,7 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
 
     Under torchrun with more than one process, data-parallel (module docstring)."""
     config.validate()
-    rank, world, started = _world()
+    rank, world, started = join_world()
     try:
         result = _train(config, resume, progress, rank, world)
         if world > 1:
@@ -201,18 +168,76 @@ def train(config: TrainConfig, resume: bool = False, progress: bool | None = Non
             dist.destroy_process_group()
 
 
+@dataclass
+class _Run:
+    """One training run's working state: what the named steps of :func:`_train` share."""
+
+    config: TrainConfig
+    task: Task
+    size: str
+    epochs: int
+    out: Path
+    rank: int
+    world: int
+    train_set: TrainingSet | TouchStream
+    folders: tuple[str, ...]
+    keys: list[str]
+    val: EvalData
+    val_unreadable: float
+    stats: dict[str, Any] = field(default_factory=dict)
+    net: torch.nn.Module | None = None
+    optimizer: Any = None
+    scheduler: Any = None
+    step_module: torch.nn.Module | None = None  # the DDP wrapper when more than one process trains
+    batches_per_epoch: int = 0
+    state: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def lead(self) -> bool:
+        return self.rank == 0
+
+    @property
+    def scene(self) -> Scene:
+        return self.train_set.scene
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.out / CHECKPOINT
+
+
 def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, world: int) -> dict[str, Any]:
-    lead = rank == 0
-    task = get_task(config.task)
-    size = config.size or task.net_sizes[0]
-    epochs = config.epochs or task.default_epochs
-    out = Path(config.out)
     if config.threads:
         torch.set_num_threads(config.threads)
+    run = _open_run(config, rank, world, resume)
+    _build_model(run)
+    run.state = _resume_state(run) if resume else _fresh_state()
+    started = time.perf_counter() - run.state["seconds"]
+    # patience only counts once the one-cycle schedule has passed its peak and half its length:
+    # before that a rising learning rate can stall validation without the run having converged
+    patience_from = max(1, run.epochs // 2)
+
+    def stale() -> int:
+        return max(0, run.state["epoch"] - max(run.state["best_epoch"], patience_from))
+
+    while run.state["epoch"] < run.epochs and stale() < config.patience:
+        epoch = run.state["epoch"] + 1
+        losses = _train_epoch(run, epoch, progress if run.lead else False)
+        _end_epoch(run, epoch, losses, time.perf_counter() - started, progress)
+    return _finish(run)
+
+
+def _open_run(config: TrainConfig, rank: int, world: int, resume: bool) -> _Run:
+    """The training data, the validation frames and the run folder, each checked."""
+    task = get_task(config.task)
     train_set: TrainingSet | TouchStream
     if config.stream:
         train_set = TouchStream(
-            load_scene(config.scene), config.stream, config.stream_seed, config.shard_size, config.fresh
+            load_scene(config.scene),
+            config.stream,
+            config.stream_seed,
+            config.shard_size,
+            config.fresh,
+            config.stream_pixels or None,
         )
         folders: tuple[str, ...] = ()
         source = str(config.scene)
@@ -228,161 +253,192 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
     if missing:
         raise DataError(f"{source}: training needs arrays {', '.join(missing)} (generate with the default outputs)")
     val, val_unreadable = _val_data(config, train_set)
-    ckpt_path = out / CHECKPOINT
+    run = _Run(
+        config=config,
+        task=task,
+        size=config.size or task.net_sizes[0],
+        epochs=config.epochs or task.default_epochs,
+        out=Path(config.out),
+        rank=rank,
+        world=world,
+        train_set=train_set,
+        folders=folders,
+        keys=keys,
+        val=val,
+        val_unreadable=val_unreadable,
+    )
     # every rank checks before any writes (rank 0 creates the folder)
-    occupied = _broadcast(out.exists() and any(out.iterdir()), world)
+    occupied = broadcast(run.out.exists() and any(run.out.iterdir()), world)
     if occupied and not resume:
-        raise DataError(f"{out} already holds a run: pass --resume to continue it, or choose another --out")
-    if resume and not ckpt_path.is_file():
-        raise DataError(f"{ckpt_path}: nothing to resume")
-    if lead:
-        out.mkdir(parents=True, exist_ok=True)
+        raise DataError(f"{run.out} already holds a run: pass --resume to continue it, or choose another --out")
+    if resume and not run.checkpoint_path.is_file():
+        raise DataError(f"{run.checkpoint_path}: nothing to resume")
+    if run.lead:
+        run.out.mkdir(parents=True, exist_ok=True)
+    return run
 
+
+def _build_model(run: _Run) -> None:
+    """Normalisation statistics, the network (fresh, or the ``--init`` weights), optimiser and schedule."""
+    config, task, scene = run.config, run.task, run.scene
+    source = ", ".join(run.folders) or str(config.scene)
     torch.manual_seed(config.seed)
-    stats = task.fit_stats(train_set.arrays(keys, limit=task.stats_limit), scene)
-    init = _read_init(config.init, size) if config.init else None
-    if init is not None:
-        stats = dict(init["stats"])  # a fine-tuned network keeps its normalisation
-    # a fine-tuned network starts from its weights (a mismatch is a ModelError naming the file)
-    net = build_net(init, scene) if init is not None else task.build_net(size, scene, stats)
-    optimizer = torch.optim.AdamW(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in train_set.shards)
+    run.stats = task.fit_stats(run.train_set.arrays(run.keys, limit=task.stats_limit), scene)
+    if config.init:
+        # a fine-tuned network starts from its weights and keeps its normalisation (a mismatch is a
+        # ModelError naming the file)
+        start = TorchEstimator.from_checkpoint(config.init, scene)
+        if start.checkpoint["size"] != run.size:
+            raise ConfigError(
+                f"--init: {config.init} holds a {start.checkpoint['size']!r} network, not {run.size!r} (pass --size)"
+            )
+        run.stats = dict(start.checkpoint["stats"])
+        run.net = start.net
+    else:
+        run.net = task.build_net(run.size, scene, run.stats)
+    run.optimizer = torch.optim.AdamW(run.net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in run.train_set.shards)
     if config.max_batches:
         batches_per_epoch = min(batches_per_epoch, config.max_batches)
     if batches_per_epoch < 1:
         raise DataError(f"{source}: fewer samples than one batch of {config.batch_size}")
-    if config.batch_size % world:
+    if config.batch_size % run.world:
         # equal shards: the mean of the ranks' gradients is then the whole batch's gradient
-        raise ConfigError(f"--batch-size: {config.batch_size} does not split into {world} equal shards (processes)")
-    scheduler = torch.optim.lr_scheduler.OneCycleLR(
-        optimizer, max_lr=config.lr, total_steps=epochs * batches_per_epoch, pct_start=0.15
+        raise ConfigError(f"--batch-size: {config.batch_size} does not split into {run.world} equal shards (processes)")
+    run.batches_per_epoch = batches_per_epoch
+    run.scheduler = torch.optim.lr_scheduler.OneCycleLR(
+        run.optimizer, max_lr=config.lr, total_steps=run.epochs * batches_per_epoch, pct_start=0.15
     )
-    step_module: torch.nn.Module | None = None
-    if world > 1:
+    if run.world > 1:
         from torch.nn.parallel import DistributedDataParallel
 
         # DDP broadcasts rank 0's initial weights, then averages the gradients of every step
-        step_module = DistributedDataParallel(_TrainStep(net, config.task))
-    metric, higher_better = task.primary_metric
-    state: dict[str, Any] = {
-        "epoch": 0,
-        "best": None,
-        "best_epoch": 0,
-        "best_state": None,
-        "history": [],
-        "seconds": 0.0,
-    }
-    if resume:
-        ckpt = load_torch(ckpt_path)
-        # the thread count may change on resume (a busier machine): it changes speed, not the recipe
-        started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
-        # a run started before a setting existed ran with that setting's default
-        defaults = asdict(TrainConfig(task=config.task, data=config.data, out=config.out))
-        started_with = {**{k: v for k, v in defaults.items() if k not in started_with}, **started_with}
-        started_with.pop("threads", None)
-        if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
-            raise ConfigError(f"{ckpt_path}: the run was started with other settings; resume it with the same command")
-        net.load_state_dict(ckpt["net"])
-        optimizer.load_state_dict(ckpt["optimizer"])
-        scheduler.load_state_dict(ckpt["scheduler"])
-        torch.set_rng_state(ckpt["torch_rng"])
-        state = ckpt["state"]
+        run.step_module = DistributedDataParallel(TrainStep(run.net, config.task))
 
-    started = time.perf_counter() - state["seconds"]
-    # patience only counts once the one-cycle schedule has passed its peak and half its length:
-    # before that a rising learning rate can stall validation without the run having converged
-    patience_from = max(1, epochs // 2)
 
-    def stale() -> int:
-        return max(0, state["epoch"] - max(state["best_epoch"], patience_from))
+def _fresh_state() -> dict[str, Any]:
+    return {"epoch": 0, "best": None, "best_epoch": 0, "best_state": None, "history": [], "seconds": 0.0}
 
-    while state["epoch"] < epochs and stale() < config.patience:
-        epoch = state["epoch"] + 1
-        rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
-        net.train()
-        losses = []
-        show = progress if lead else False
-        with progress_bar(batches_per_epoch, f"epoch {epoch}/{epochs}", "batch", enabled=show) as bar:
-            if isinstance(train_set, TouchStream):
-                batches = train_set.epoch_batches(epoch, keys, config.batch_size, rng, drop_last=True)
+
+def _resume_state(run: _Run) -> dict[str, Any]:
+    """Network, optimiser, schedule and torch RNG as the checkpoint left them; its loop state."""
+    config = run.config
+    ckpt = load_torch(run.checkpoint_path)
+    # the thread count may change on resume (a busier machine): it changes speed, not the recipe
+    started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
+    # a run started before a setting existed ran with that setting's default
+    defaults = asdict(TrainConfig(task=config.task, data=config.data, out=config.out))
+    started_with = {**{k: v for k, v in defaults.items() if k not in started_with}, **started_with}
+    started_with.pop("threads", None)
+    if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
+        raise ConfigError(
+            f"{run.checkpoint_path}: the run was started with other settings; resume it with the same command"
+        )
+    assert run.net is not None
+    run.net.load_state_dict(ckpt["net"])
+    run.optimizer.load_state_dict(ckpt["optimizer"])
+    run.scheduler.load_state_dict(ckpt["scheduler"])
+    torch.set_rng_state(ckpt["torch_rng"])
+    state: dict[str, Any] = ckpt["state"]
+    return state
+
+
+def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
+    """One epoch's optimiser steps; the batch losses."""
+    config, task, scene, net = run.config, run.task, run.scene, run.net
+    assert net is not None
+    rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
+    net.train()
+    losses: list[float] = []
+    with progress_bar(run.batches_per_epoch, f"epoch {epoch}/{run.epochs}", "batch", enabled=show) as bar:
+        if isinstance(run.train_set, TouchStream):
+            batches = run.train_set.epoch_batches(epoch, run.keys, config.batch_size, rng, drop_last=True)
+        else:
+            batches = run.train_set.iter_batches(run.keys, config.batch_size, rng=rng, drop_last=True)
+        for i, arrays in enumerate(batches):
+            if i >= run.batches_per_epoch:
+                break
+            if run.step_module is not None:
+                # every rank draws the whole batch and its augmentation from the same random
+                # stream (as one process would), then trains on its own shard of the frames
+                x, targets = task.training_batch(arrays, scene, rng)
+                x, targets = x[run.rank :: run.world], {k: v[run.rank :: run.world] for k, v in targets.items()}
+                output = run.step_module(torch.from_numpy(np.ascontiguousarray(x)))
+                targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
             else:
-                batches = train_set.iter_batches(keys, config.batch_size, rng=rng, drop_last=True)
-            for i, arrays in enumerate(batches):
-                if i >= batches_per_epoch:
-                    break
-                if step_module is not None:
-                    # every rank draws the whole batch and its augmentation from the same random
-                    # stream (as one process would), then trains on its own shard of the frames
-                    x, targets = task.training_batch(arrays, scene, rng)
-                    x, targets = x[rank::world], {k: v[rank::world] for k, v in targets.items()}
-                    output = step_module(torch.from_numpy(np.ascontiguousarray(x)))
-                    targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
-                else:
-                    x, targets = task.training_batch(arrays, scene, rng)
-                    output = task.train_forward(net, torch.from_numpy(x))
-                loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
-                if not torch.isfinite(loss):
-                    raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
-                optimizer.zero_grad(set_to_none=True)
-                loss.backward()
-                torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
-                optimizer.step()
-                scheduler.step()
-                losses.append(loss.item())
-                bar.update()
-                if i % 20 == 0:
-                    bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
-        # rank 0 validates and decides for everyone (the weights are the same on every rank)
-        val_metrics = task.evaluate(TorchEstimator(net, config.task, scene), val) if lead else {}
-        val_metrics = _broadcast(val_metrics, world)
-        value = float(val_metrics[metric])
-        improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
-        if improved:
-            state["best"], state["best_epoch"] = value, epoch
-            state["best_state"] = {k: v.detach().clone() for k, v in net.state_dict().items()}
-        state["epoch"] = epoch
-        state["seconds"] = time.perf_counter() - started
-        state["history"].append(
-            {
-                "epoch": epoch,
-                "train_loss": float(np.mean(losses)),
-                "val": _scalars(val_metrics),
-                "seconds": state["seconds"],
-            }
-        )
-        if world > 1:
-            state["history"][-1]["train_loss"] = _mean_over_ranks(float(np.mean(losses)), world)
-        if not lead:
-            continue
-        save_torch(
-            ckpt_path,
-            {
-                "config": asdict(config),
-                "net": net.state_dict(),
-                "optimizer": optimizer.state_dict(),
-                "scheduler": scheduler.state_dict(),
-                "torch_rng": torch.get_rng_state(),
-                "state": state,
-            },
-        )
-        if progress is not False:
-            print(
-                f"epoch {epoch}: loss {np.mean(losses):.4g}, val {metric} {value:.4f}{' (best)' if improved else ''}",
-                flush=True,
-            )
+                x, targets = task.training_batch(arrays, scene, rng)
+                output = task.train_forward(net, torch.from_numpy(x))
+            loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
+            if not torch.isfinite(loss):
+                raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
+            run.optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(net.parameters(), 5.0)
+            run.optimizer.step()
+            run.scheduler.step()
+            losses.append(loss.item())
+            bar.update()
+            if i % 20 == 0:
+                bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
+    return losses
 
+
+def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progress: bool | None) -> None:
+    """Validate (rank 0, for everyone), keep the best weights, record the epoch, write the checkpoint."""
+    state, net = run.state, run.net
+    assert net is not None
+    metric, higher_better = run.task.primary_metric
+    val_metrics = run.task.evaluate(TorchEstimator(net, run.config.task, run.scene), run.val) if run.lead else {}
+    val_metrics = broadcast(val_metrics, run.world)
+    value = float(val_metrics[metric])
+    improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
+    if improved:
+        state["best"], state["best_epoch"] = value, epoch
+        state["best_state"] = {k: v.detach().clone() for k, v in net.state_dict().items()}
+    state["epoch"] = epoch
+    state["seconds"] = seconds
+    state["history"].append(
+        {"epoch": epoch, "train_loss": float(np.mean(losses)), "val": _scalars(val_metrics), "seconds": seconds}
+    )
+    if run.world > 1:
+        state["history"][-1]["train_loss"] = mean_over_ranks(float(np.mean(losses)), run.world)
+    if not run.lead:
+        return
+    save_torch(
+        run.checkpoint_path,
+        {
+            "config": asdict(run.config),
+            "net": net.state_dict(),
+            "optimizer": run.optimizer.state_dict(),
+            "scheduler": run.scheduler.state_dict(),
+            "torch_rng": torch.get_rng_state(),
+            "state": state,
+        },
+    )
+    if progress is not False:
+        print(
+            f"epoch {epoch}: loss {np.mean(losses):.4g}, val {metric} {value:.4f}{' (best)' if improved else ''}",
+            flush=True,
+        )
+
+
+def _finish(run: _Run) -> dict[str, Any]:
+    """The best epoch's weights, evaluated once more; rank 0 writes ``model.pt``, the metrics and the plot."""
+    config, state, net, scene = run.config, run.state, run.net, run.scene
+    assert net is not None
     net.load_state_dict(state["best_state"])
     digest = weights_digest(state["best_state"])
-    if not lead:
+    if not run.lead:
         # the other ranks hold the same weights; rank 0 writes the run
-        return {"rank": rank, "world_size": world, "weights_sha256": digest, "epochs_run": state["epoch"]}
-    final = _scalars(task.evaluate(TorchEstimator(net, config.task, scene), val))
+        return {"rank": run.rank, "world_size": run.world, "weights_sha256": digest, "epochs_run": state["epoch"]}
+    final = _scalars(run.task.evaluate(TorchEstimator(net, config.task, scene), run.val))
+    folders, train_set = run.folders, run.train_set
     result = {
         "task": config.task,
-        "size": size,
+        "size": run.size,
         "scene": scene.name,
         "scene_digest": scene.digest,
-        "val_unreadable": val_unreadable,
+        "val_unreadable": run.val_unreadable,
         "train_data": (
             train_set.describe()
             if isinstance(train_set, TouchStream)
@@ -392,48 +448,32 @@ def _train(config: TrainConfig, resume: bool, progress: bool | None, rank: int, 
                 "n": len(train_set),
             }
         ),
-        "val_data": {"path": str(config.val), "n": len(val)},
+        "val_data": {"path": str(config.val), "n": len(run.val)},
         "epochs_run": state["epoch"],
         "best_epoch": state["best_epoch"],
         "train_seconds": state["seconds"],
         "threads": torch.get_num_threads(),
-        "world_size": world,
+        "world_size": run.world,
         "weights_sha256": digest,
         "val_metrics": final,
         "history": state["history"],
         "config": asdict(config),
     }
     save_torch(
-        out / MODEL,
+        run.out / MODEL,
         {
             "task": config.task,
-            "size": size,
+            "size": run.size,
             "scene": scene.to_dict(),
-            "stats": stats,
+            "stats": run.stats,
             "state_dict": state["best_state"],
             "result": result,
             "version": __version__,
         },
     )
-    atomic_write_json(out / "metrics.json", result)
-    _loss_plot(state["history"], out / "loss.png", metric)
+    atomic_write_json(run.out / "metrics.json", result)
+    _loss_plot(state["history"], run.out / "loss.png", run.task.primary_metric[0])
     return result
-
-
-def _mean_over_ranks(value: float, world: int) -> float:
-    import torch.distributed as dist
-
-    tensor = torch.tensor([value], dtype=torch.float64)
-    dist.all_reduce(tensor)
-    return float(tensor.item()) / world
-
-
-def _read_init(source: str, size: str) -> dict[str, Any]:
-    """The weights and statistics of ``source`` (a finished run or a model's ``NAME.pt``)."""
-    saved = load_weights(source)
-    if saved["size"] != size:
-        raise ConfigError(f"--init: {source} holds a {saved['size']!r} network, not {size!r} (pass --size)")
-    return saved
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:

@@ -31,6 +31,7 @@ SUBCOMMANDS = (
     "scenes",
     "materials",
     "sweep",
+    "cards",
     "demo",
 )
 

@@ -36,102 +36,51 @@ def _cli(argv: list[str]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    cli = _cli
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     _step("shipped scenes")
-    cli(["scenes"])
-
+    _cli(["scenes"])
     _step("strip array: the paper's figures with the classical estimators")
-    for scene in ("strips16", "strips5"):
-        data = out / f"{scene}-test"
-        cli(["generate", "--scene", scene, "--n", "1000", "--seed", "77", "--out", str(data), "--quiet"])
-        for method in ("intersection", "projection"):
-            cli(
-                [
-                    "eval",
-                    "--task",
-                    "strips",
-                    "--data",
-                    str(data),
-                    "--method",
-                    method,
-                    "--json",
-                    str(out / f"eval-{scene}-{method}.json"),
-                ]
-            )
-
+    _classical_figures(out)
     if not args.skip_train:
         _step("train a quick strips16 model on CPU, export it to ONNX, evaluate it under onnxruntime")
-        train, val = out / "strips16-train", out / "strips16-val"
-        cli(
-            [
-                "generate",
-                "--scene",
-                "strips16",
-                "--n",
-                str(args.train_n),
-                "--seed",
-                "1",
-                "--out",
-                str(train),
-                "--workers",
-                "2",
-                "--quiet",
-            ]
-        )
-        cli(["generate", "--scene", "strips16", "--n", "1000", "--seed", "2", "--out", str(val), "--quiet"])
-        run_dir = out / "run-strips16"
-        resume = ["--resume"] if (run_dir / "checkpoint.pt").exists() else []
-        cli(
-            [
-                "train",
-                "--task",
-                "strips",
-                "--data",
-                str(train),
-                "--val",
-                str(val),
-                "--out",
-                str(run_dir),
-                "--epochs",
-                "3",
-                "--quiet",
-                *resume,
-            ]
-        )
-        model = out / "strips16-demo.onnx"
-        cli(["export", str(run_dir), "--out", str(model), "--test", str(out / "strips16-test")])
-        cli(["eval", "--task", "strips", "--data", str(out / "strips16-test"), "--method", str(model), "--summary"])
-        cli(
-            [
-                "eval",
-                "--task",
-                "strips",
-                "--data",
-                str(out / "strips16-test"),
-                "--method",
-                "strips16",  # the shipped model, for comparison with the quick one
-                "--summary",
-            ]
-        )
-
+        _quick_model(out, args.train_n)
     _step("benchmark every task: shipped models against the classical algorithms")
-    cli(
-        [
-            "bench",
-            "--task",
-            "all",
-            "--quick",
-            "--json",
-            str(out / "bench.json"),
-            "--plot",
-            str(out / "bench.png"),
-        ]
-    )
+    _cli(["bench", "--task", "all", "--quick", "--json", str(out / "bench.json"), "--plot", str(out / "bench.png")])
     print(
         f"\ndemo finished in {time.perf_counter() - started:.0f} s; "
         f"tables and plots are in {out}/ (bench.md, bench.png)"
     )
     return 0
+
+
+def _generate(scene: str, n: int, seed: int, folder: Path, *extra: str) -> None:
+    _cli(["generate", "--scene", scene, "--n", str(n), "--seed", str(seed), "--out", str(folder), *extra, "--quiet"])
+
+
+def _classical_figures(out: Path) -> None:
+    """Held-out frames of both strip scenes and the classical estimators' metrics on them."""
+    for scene in ("strips16", "strips5"):
+        data = out / f"{scene}-test"
+        _generate(scene, 1000, 77, data)
+        for method in ("intersection", "projection"):
+            json_out = str(out / f"eval-{scene}-{method}.json")
+            _cli(["eval", "--task", "strips", "--data", str(data), "--method", method, "--json", json_out])
+
+
+def _quick_model(out: Path, train_n: int) -> None:
+    """A quick strips16 model (3 epochs, resumed if a run is there), exported, evaluated beside the
+    shipped one on the held-out frames of :func:`_classical_figures`."""
+    train, val, test = out / "strips16-train", out / "strips16-val", out / "strips16-test"
+    _generate("strips16", train_n, 1, train, "--workers", "2")
+    _generate("strips16", 1000, 2, val)
+    run_dir = out / "run-strips16"
+    resume = ["--resume"] if (run_dir / "checkpoint.pt").exists() else []
+    recipe = ["--epochs", "3", "--quiet", *resume]
+    _cli(["train", "--task", "strips", "--data", str(train), "--val", str(val), "--out", str(run_dir), *recipe])
+    model = out / "strips16-demo.onnx"
+    _cli(["export", str(run_dir), "--out", str(model), "--test", str(test)])
+    # the quick model, then the shipped one for comparison
+    for method in (str(model), "strips16"):
+        _cli(["eval", "--task", "strips", "--data", str(test), "--method", method, "--summary"])

@@ -19,6 +19,7 @@ HELP = "evaluate a classical method or an ONNX model on a dataset, an .npz or re
 EXAMPLES = """\
   tactile-learn eval --task strips --data data/strips16-test --method intersection
   tactile-learn eval --task strips --data data/strips16-test --method models/strips16.onnx --json out.json
+  tactile-learn eval --task strips --data data/strips16-test --method runs/s16    # a run, before export (torch)
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
   tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
@@ -41,7 +42,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--suite", default=None, help="instead of --data: a suite of families (e.g. strips16_ood)")
     parser.add_argument("--n", type=positive_int, default=None, help="with --suite: frames per family")
     parser.add_argument("--seed", type=int, default=None, help="with --suite: the frames' seed (default fixed)")
-    parser.add_argument("--method", required=True, help="classical method name, shipped model name, or MODEL.onnx")
+    parser.add_argument(
+        "--method",
+        required=True,
+        help="classical method name, shipped model name, MODEL.onnx, or torch weights (a run folder, NAME.pt)",
+    )
     parser.add_argument(
         "--scene", default=None, help="scene of the data (default: the dataset's, else the model's, else the task's)"
     )

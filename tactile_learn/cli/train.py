@@ -16,6 +16,7 @@ EXAMPLES = """\
   tactile-learn train --task strips --data data/s16-train --val data/s16-val --out runs/s16-small --resume
   tactile-learn train --task thermal --data data/th-train --val data/th-val --out runs/th --size small
   tactile-learn train --task thermal --scene thermal --stream 160000 --val data/th-val --out runs/th-stream
+  tactile-learn train --task thermal --scene thermal --stream 160000 --stream-pixels 4 --val data/th-val --out runs/th4
   tactile-learn train --task strips --data data/mine --val data/mine-val --out runs/tuned --init models/strips16.pt
   tactile-learn train --task strips --data data/mixed-train data/s16-train --val data/mixed-val --out runs/mix
   # data-parallel on N processes (DDP, gloo, CPU): each rank trains on its share of every batch, rank 0 writes the run
@@ -23,7 +24,9 @@ EXAMPLES = """\
       --out runs/s16-ddp --threads 1
 --scene/--stream: every epoch simulates --stream fresh samples (seed --stream-seed; epoch e takes the shards
 after epoch e-1's), shuffled like a dataset; --repeat reuses the first epoch's (then training equals training on
-`generate --n N --seed S --shard-size B`, same weights).
+`generate --n N --seed S --shard-size B`, same weights). --stream-pixels K (thermal) simulates only K random
+pixels of every touch: training reads 4 per touch, so 4 of a 4 x 4 array is the same training at a quarter of the
+simulation.
 Writes RUN/checkpoint.pt every epoch, then RUN/model.pt (best epoch), RUN/metrics.json and RUN/loss.png."""
 
 
@@ -48,6 +51,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--repeat", action="store_true", help="every epoch the same --stream samples (a dataset) instead of fresh ones"
+    )
+    parser.add_argument(
+        "--stream-pixels",
+        type=non_negative_int,
+        default=0,
+        help="thermal --stream: simulate only K random pixels of every touch (training reads 4; 0: all)",
     )
     parser.add_argument("--val", required=True, help="validation dataset folder (another seed)")
     parser.add_argument("--out", required=True, help="run folder")
@@ -90,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         stream_seed=args.stream_seed,
         shard_size=args.shard_size,
         fresh=not args.repeat,
+        stream_pixels=args.stream_pixels,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports

@@ -150,7 +150,7 @@ class StripsTask(Task):
         """``graph_optimization`` (onnxruntime's level for these networks) and ``consistency``: the
         flag thresholds of a model with the check outputs, a high quantile of each on the run's
         validation frames (in-distribution, never trained on)."""
-        from tactile_learn.export import portable_path
+        from tactile_learn.provenance import portable_path
         from tactile_learn.runtime import OnnxEstimator
         from tactile_learn.strips_guard import THRESHOLD_QUANTILE, calibrate_threshold
 

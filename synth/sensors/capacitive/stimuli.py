@@ -14,12 +14,14 @@ kinds added to the shape library need no change here.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from synth.errors import InputError
+from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.capacitive.config import CapacitiveConfig
 from synth.sensors.model import SensorModel, StimulusGenerator
@@ -50,6 +52,17 @@ class Presses:
     mask: np.ndarray | None = None
     contacts: dict[str, np.ndarray] = field(default_factory=dict)
     load: np.ndarray | None = None
+
+    #: the arrays of :meth:`from_arrays` (a user's ``.npz``)
+    FIELDS: ClassVar[dict[str, str]] = {
+        "field_kpa": "(B, F, Hp, Wp) surface pressure (kPa) of every frame, padded lattice (alias 'pressure')",
+        "drift_v": "(B, F) common offset drift of every frame in V, optional (default 0)",
+    }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], config: CapacitiveConfig) -> Presses:
+        """A stimulus from named arrays (:attr:`FIELDS`), validated."""
+        return cls.from_field(take(arrays, "field_kpa", "pressure"), config, optional(arrays, "drift_v"))
 
     @classmethod
     def from_field(cls, field_kpa: Any, config: CapacitiveConfig, drift_v: Any = None) -> Presses:

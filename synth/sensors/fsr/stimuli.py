@@ -15,12 +15,14 @@ those draws (``FsrModel.forward``).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from synth.errors import InputError
+from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.fsr.config import N_SENSORS, FilmConfig, FsrConfig
 from synth.sensors.fsr.geometry import TRIANGLES, triangle_vertices
@@ -60,8 +62,27 @@ class FsrPresses:
     adc_noise: np.ndarray | None = None
     unusual: dict[str, np.ndarray] | None = None
 
+    #: the arrays of :meth:`from_arrays` (a user's ``.npz``)
+    FIELDS: ClassVar[dict[str, str]] = {
+        "xy_mm": "(B, 2) press centre in mm, origin at the film's centre, x right, y up",
+        "force_n": "(B,) applied force in N (0: no contact)",
+        "tip_radius_mm": "(B,) or one value: the spherical tip's radius in mm",
+        "press_gain": "(B, 6), (6,) or one value: the six parts' gains, optional (alias 'gains'; default 1)",
+    }
+
     def __len__(self) -> int:
         return len(self.force_n)
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> FsrPresses:
+        """A stimulus from named arrays (:attr:`FIELDS`), validated."""
+        gains = optional(arrays, "press_gain", "gains")
+        return cls.from_contacts(
+            take(arrays, "xy_mm"),
+            take(arrays, "force_n"),
+            take(arrays, "tip_radius_mm"),
+            1.0 if gains is None else gains,
+        )
 
     @property
     def contact(self) -> np.ndarray:

@@ -2,8 +2,9 @@
 
 - :mod:`~synth.sensors.strips.config`: the ``[strips]`` scene table;
 - :mod:`~synth.sensors.strips.layouts`: geometry, strip layers and readout channels of every layout;
-- :mod:`~synth.sensors.strips.physics`: cover mechanics, piezoresistance, readout, noise and ADC
-  (:class:`StripSensor`: every stage, and ``forward`` of a user's pressure field);
+- :mod:`~synth.sensors.strips.mechanics`: the cover's mechanics (pressure -> segment stress);
+- :mod:`~synth.sensors.strips.physics`: piezoresistance, readout, noise and ADC (:class:`StripSensor`:
+  every stage, and ``forward`` of a user's pressure field);
 - :mod:`~synth.sensors.strips.stimuli`: contacts from the shape library (:class:`ContactGenerator`);
 - :mod:`~synth.sensors.strips.sensor`: :class:`StripModel` (physics -> transduce -> noise -> adc).
 """
@@ -25,7 +26,8 @@ from synth.sensors.strips.config import (
 )
 from synth.sensors.strips.config import StripReadout as ReadoutConfig
 from synth.sensors.strips.layouts import LAYOUTS, StripGeometry, StripLayout
-from synth.sensors.strips.physics import Adc, GaussianNoise, PiezoLaw, StripArray, StripReadout, StripSensor
+from synth.sensors.strips.mechanics import StripArray
+from synth.sensors.strips.physics import Adc, GaussianNoise, PiezoLaw, StripReadout, StripSensor
 from synth.sensors.strips.sensor import StripModel, StripStimulus
 from synth.sensors.strips.stimuli import OUTPUTS, ContactGenerator, PressureField, StripContacts
 
@@ -72,20 +74,21 @@ class StripSimulator(ModelSimulator):
 
     def __init__(self, scene: Scene) -> None:
         config: StripsConfig = scene.sensor
-        model = StripModel(config)
+        self.strip_model = StripModel(config)
         rasterize = any(scene.wants(o) for o in ("readings", "pressure", "field"))
-        super().__init__(model, ContactGenerator(config, model, rasterize), scene.outputs, scene.noise)
+        generator = ContactGenerator(config, self.strip_model, rasterize)
+        super().__init__(self.strip_model, generator, scene.outputs, scene.noise)
         self.scene = scene
         self.config = config
 
     @property
     def sensor(self) -> StripSensor:
-        model: StripModel = self.model  # type: ignore[assignment]
-        return model.sensor
+        return self.strip_model.sensor
 
 
 def sensor_model(config: StripsConfig) -> StripModel:
-    """The sensor model of a ``[strips]`` table (its lattice padded for the scene's contacts)."""
+    """The sensor model of a ``[strips]`` table, its lattice padded for the scene's contacts (the
+    datasets' model); ``StripModel(config, pad=0)`` has the operators of ``StripSensor(config)``."""
     return StripModel(config)
 
 

@@ -12,12 +12,14 @@ intersection map (mean surface pressure over every pitch cell), the fine field, 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from synth.errors import InputError
+from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.model import StimulusGenerator
 from synth.sensors.strips.config import DRAWN_PARAMS, StripsConfig, draw_except
@@ -74,8 +76,19 @@ class PressureField:
     field_kpa: np.ndarray
     gains: np.ndarray
 
+    #: the arrays of :meth:`from_arrays` (a user's ``.npz``)
+    FIELDS: ClassVar[dict[str, str]] = {
+        "field_kpa": "(B, N*s, M*s) surface pressure in kPa on the fine lattice (alias 'pressure')",
+        "gains": "(B, S) per-strip sensitivity gains, optional (default 1: a nominal device)",
+    }
+
     def __len__(self) -> int:
         return len(self.gains)
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], config: StripsConfig) -> PressureField:
+        """A stimulus from named arrays (:attr:`FIELDS`), validated."""
+        return cls.from_field(take(arrays, "field_kpa", "pressure"), config, optional(arrays, "gains"))
 
     @classmethod
     def from_field(cls, field_kpa: Any, config: StripsConfig, gains: Any = None) -> PressureField:

@@ -7,6 +7,7 @@
   lagging, controlled channels and the passive thermistor;
 - :mod:`~synth.sensors.thermal.readout`: thermistor noise and ADC;
 - :mod:`~synth.sensors.thermal.stimuli`: touches (:class:`TouchGenerator`);
+- :mod:`~synth.sensors.thermal.subset`: touches of which only some pixels are read (training);
 - :mod:`~synth.sensors.thermal.sensor`: :class:`ThermalModel` (physics -> transduce -> noise -> adc)
   and :class:`PassiveModel`.
 """
@@ -36,6 +37,7 @@ from synth.sensors.thermal.physics import (
 from synth.sensors.thermal.readout import Readout
 from synth.sensors.thermal.sensor import PassiveModel, ThermalModel
 from synth.sensors.thermal.stimuli import OUTPUTS, Touches, TouchGenerator
+from synth.sensors.thermal.subset import PixelSubset, PixelSubsetSimulator
 
 __all__ = [
     "CONFIG_CLASS",
@@ -47,6 +49,8 @@ __all__ = [
     "ObjectsConfig",
     "PassiveConfig",
     "PassiveModel",
+    "PixelSubset",
+    "PixelSubsetSimulator",
     "Readout",
     "ReadoutConfig",
     "SensorConfig",
@@ -98,6 +102,14 @@ def sensor_model(config: ThermalConfig) -> ThermalModel:
     return ThermalModel(config)
 
 
-def make_simulator(scene: Scene, reference: bool = False) -> ThermalSimulator:
-    """The scene's simulator; ``reference``: the whole-record path (see :class:`ThermalModel`)."""
-    return ThermalSimulator(scene, reference)
+def make_simulator(
+    scene: Scene, reference: bool = False, pixels: int | None = None
+) -> ThermalSimulator | PixelSubsetSimulator:
+    """The scene's simulator; ``reference``: the whole-record path (see :class:`ThermalModel`);
+    ``pixels``: read only that many random pixels of every touch
+    (:mod:`~synth.sensors.thermal.subset`: what training reads, a fraction of the work)."""
+    if pixels is None:
+        return ThermalSimulator(scene, reference)
+    if reference:
+        raise ConfigError("pixels: a pixel subset runs on the fast path only (reference=False)")
+    return PixelSubsetSimulator(scene, pixels)

@@ -14,13 +14,15 @@ sensor, objects, then the real-sensor quantities), so datasets keep their bytes.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from synth.errors import InputError
-from synth.materials import FAMILIES, sample_properties
+from synth.materials import FAMILIES, get_material, sample_properties
+from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.model import StimulusGenerator
 from synth.sensors.thermal.config import ThermalConfig
@@ -65,6 +67,63 @@ _DYNAMIC_LATENTS: dict[str, tuple[str, str]] = {
 }
 
 
+#: quantities of a user's touch that must be positive (the onset may be 0)
+_POSITIVE = ("k_w_mk", "rho_kg_m3", "c_j_kgk", "conductance_w_m2k", "radius_mm", "contact_s")
+
+
+def _per_touch(values: dict[str, Any]) -> tuple[dict[str, np.ndarray], int]:
+    """Every value as a float64 array of one value or ``B`` (one per touch), validated, and ``B``."""
+    arrays = {k: np.atleast_1d(np.asarray(v, dtype=np.float64)) for k, v in values.items()}
+    b = max(len(a) for a in arrays.values())
+    for name, arr in arrays.items():
+        if arr.ndim != 1 or len(arr) not in (1, b):
+            raise InputError(f"{name}: expected one value or shape ({b},), got {arr.shape}")
+        if not np.isfinite(arr).all():
+            raise InputError(f"{name}: contains NaN or inf")
+    for name in _POSITIVE:
+        if (arrays[name] <= 0).any():
+            raise InputError(f"{name}: must be > 0")
+    if (arrays["onset_s"] < 0).any():
+        raise InputError("onset_s: must be >= 0 (seconds from the record's start)")
+    return arrays, b
+
+
+def _nominal_sensor_touch(
+    config: ThermalConfig, a: dict[str, np.ndarray], mask: np.ndarray, ambient: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The physics' quantities of user touches ``a`` ((B, P) each) on pixels ``mask`` of a sensor
+    at the middle of the scene's ranges, every pixel alike."""
+    sc = config.sensor
+    b, p = mask.shape
+    heat_capacity = np.full((b, p), float(np.mean(sc.heat_capacity_j_m2k)))
+    loss = np.full((b, p), float(np.mean(sc.loss_w_m2k)))
+    heater = np.full((b, p), float(np.mean(sc.heater_w_m2)))
+    radius_m = a["radius_mm"] * 1e-3
+    spreading = spreading_conductance(a["k_w_mk"], radius_m) if config.contact.spreading else 0.0 * radius_m
+    object_c = np.where(mask, a["object_c"], ambient[:, None])
+    return {
+        "layout": np.where(mask, 0, -1).astype(np.int8),
+        "touched": mask,
+        "material": np.full((b, p), -1),
+        "k": a["k_w_mk"],
+        "rho": a["rho_kg_m3"],
+        "c": a["c_j_kgk"],
+        "effusivity": np.sqrt(a["k_w_mk"] * a["rho_kg_m3"] * a["c_j_kgk"]),
+        "diffusivity": a["k_w_mk"] / (a["rho_kg_m3"] * a["c_j_kgk"]),
+        "conductance": a["conductance_w_m2k"],
+        "radius_mm": a["radius_mm"],
+        "spreading": spreading,
+        "object_c": object_c,
+        "v0": ambient[:, None] + heater / loss - object_c,
+        "onset": a["onset_s"],
+        "release": a["onset_s"] + a["contact_s"],
+        "heat_capacity": heat_capacity,
+        "loss": loss,
+        "heater": heater,
+        "ambient": ambient,
+    }
+
+
 @dataclass(frozen=True)
 class Touches:
     """Every quantity of ``B`` touches: ``params[name]`` (B, P) float64 (``ambient`` (B,)), the keys
@@ -73,6 +132,57 @@ class Touches:
     ``onset``, ``release``; real-sensor scenes more)."""
 
     params: dict[str, np.ndarray]
+
+    #: the arrays of :meth:`from_arrays` (a user's ``.npz``): each (B,) or one value
+    FIELDS: ClassVar[dict[str, str]] = {
+        "object_c": "the object's temperature (degC)",
+        "material": "material names from synth/data/materials.toml (e.g. 'aluminium'), or the three below",
+        "k_w_mk": "the object's conductivity (W/(m K)), instead of 'material'",
+        "rho_kg_m3": "its density (kg/m^3), instead of 'material'",
+        "c_j_kgk": "its specific heat (J/(kg K)), instead of 'material'",
+        "conductance_w_m2k": "interface conductance (W/(m^2 K)), optional (default: the scene's geometric middle)",
+        "radius_mm": "contact patch radius (mm), optional (default: the scene's middle)",
+        "onset_s": "contact onset (s from the record's start), optional (default: the scene's middle)",
+        "contact_s": "contact duration (s) before release, optional (default: the scene's middle)",
+        "ambient_c": "ambient temperature (degC), optional (default: the scene's middle)",
+        "touched": "(B, P) bool: the pixels in contact, optional (default: all)",
+    }
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], config: ThermalConfig) -> Touches:
+        """A stimulus from named arrays (:attr:`FIELDS`), validated; unset contact quantities take
+        the middle of the scene's ranges."""
+        cc = config.contact
+        names = optional(arrays, "material")
+        if names is not None:
+            if any(k in arrays for k in ("k_w_mk", "rho_kg_m3", "c_j_kgk")):
+                raise InputError("stimulus: give either 'material' or 'k_w_mk', 'rho_kg_m3', 'c_j_kgk', not both")
+            if names.dtype.kind != "U":
+                raise InputError(f"material: expected material names (strings), got {names.dtype}")
+            found = [get_material(str(name)) for name in np.atleast_1d(names)]
+            props = {
+                "k_w_mk": np.array([m.k_w_mk for m in found]),
+                "rho_kg_m3": np.array([m.rho_kg_m3 for m in found]),
+                "c_j_kgk": np.array([m.c_j_kgk for m in found]),
+            }
+        else:
+            props = {key: take(arrays, key) for key in ("k_w_mk", "rho_kg_m3", "c_j_kgk")}
+
+        def given(name: str, default: float) -> Any:
+            value = optional(arrays, name)
+            return default if value is None else value
+
+        return cls.from_objects(
+            config,
+            object_c=take(arrays, "object_c"),
+            **props,
+            conductance_w_m2k=given("conductance_w_m2k", float(np.sqrt(np.prod(cc.conductance_w_m2k)))),
+            radius_mm=given("radius_mm", float(np.mean(cc.radius_mm))),
+            onset_s=given("onset_s", float(np.mean(cc.onset_s))),
+            contact_s=given("contact_s", float(np.mean(cc.contact_s))),
+            ambient_c=optional(arrays, "ambient_c"),
+            touched=optional(arrays, "touched"),
+        )
 
     def __len__(self) -> int:
         return len(self.params["touched"])
@@ -124,52 +234,13 @@ class Touches:
             "contact_s": contact_s,
             "ambient_c": float(np.mean(sc.ambient_c)) if ambient_c is None else ambient_c,
         }
-        arrays = {k: np.atleast_1d(np.asarray(v, dtype=np.float64)) for k, v in values.items()}
-        b = max(len(a) for a in arrays.values())
-        for name, arr in arrays.items():
-            if arr.ndim != 1 or len(arr) not in (1, b):
-                raise InputError(f"{name}: expected one value or shape ({b},), got {arr.shape}")
-            if not np.isfinite(arr).all():
-                raise InputError(f"{name}: contains NaN or inf")
-        for name in ("k_w_mk", "rho_kg_m3", "c_j_kgk", "conductance_w_m2k", "radius_mm", "contact_s"):
-            if (arrays[name] <= 0).any():
-                raise InputError(f"{name}: must be > 0")
-        if (arrays["onset_s"] < 0).any():
-            raise InputError("onset_s: must be >= 0 (seconds from the record's start)")
+        arrays, b = _per_touch(values)
         a = {k: np.broadcast_to(v, (b,))[:, None] * np.ones((1, p)) for k, v in arrays.items()}
         mask = np.ones((b, p), bool) if touched is None else np.asarray(touched, dtype=bool)
         if mask.shape != (b, p):
             raise InputError(f"touched: expected shape ({b}, {p}), got {mask.shape}")
-        heat_capacity = np.full((b, p), float(np.mean(sc.heat_capacity_j_m2k)))
-        loss = np.full((b, p), float(np.mean(sc.loss_w_m2k)))
-        heater = np.full((b, p), float(np.mean(sc.heater_w_m2)))
         ambient = np.broadcast_to(arrays["ambient_c"], (b,)).copy()
-        radius_m = a["radius_mm"] * 1e-3
-        spreading = spreading_conductance(a["k_w_mk"], radius_m) if config.contact.spreading else 0.0 * radius_m
-        object_c = np.where(mask, a["object_c"], ambient[:, None])
-        return cls(
-            {
-                "layout": np.where(mask, 0, -1).astype(np.int8),
-                "touched": mask,
-                "material": np.full((b, p), -1),
-                "k": a["k_w_mk"],
-                "rho": a["rho_kg_m3"],
-                "c": a["c_j_kgk"],
-                "effusivity": np.sqrt(a["k_w_mk"] * a["rho_kg_m3"] * a["c_j_kgk"]),
-                "diffusivity": a["k_w_mk"] / (a["rho_kg_m3"] * a["c_j_kgk"]),
-                "conductance": a["conductance_w_m2k"],
-                "radius_mm": a["radius_mm"],
-                "spreading": spreading,
-                "object_c": object_c,
-                "v0": ambient[:, None] + heater / loss - object_c,
-                "onset": a["onset_s"],
-                "release": a["onset_s"] + a["contact_s"],
-                "heat_capacity": heat_capacity,
-                "loss": loss,
-                "heater": heater,
-                "ambient": ambient,
-            }
-        )
+        return cls(_nominal_sensor_touch(config, a, mask, ambient))
 
 
 class TouchGenerator(StimulusGenerator[Touches]):
