@@ -19,7 +19,6 @@ KNOWN_VIOLATIONS = {
     "cycle: tactile_learn.estimators.classical.calibrated_fit <-> tactile_learn.estimators.classical.curve_match"
     " <-> tactile_learn.estimators.classical.physics_fit <-> tactile_learn.tasks.thermal"
     " <-> tactile_learn.thermal_adapt",
-    "cycle: tactile_learn.nets.strips <-> tactile_learn.nets.strips_general <-> tactile_learn.nets.strips_layout",
     "cycle: tactile_learn.strips_guard <-> tactile_learn.tasks.strips",
     "arrow: tactile_learn.estimators.classical.calibrated_fit -> tactile_learn.tasks.thermal",
     "arrow: tactile_learn.estimators.classical.curve_match -> tactile_learn.tasks.thermal",
