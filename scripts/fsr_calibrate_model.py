@@ -65,7 +65,7 @@ def paper_conditions(scene: Scene) -> Scene:
 def triangulation_on_held_out(scene: Scene, n: int, seed: int) -> dict[str, float]:
     test = paper_conditions(scene)
     data = fsr.make_simulator(test).simulate(n, np.random.default_rng(seed))
-    pred = TriangulationEstimator(scene).predict(data["readings"])
+    pred = TriangulationEstimator(scene).prepare().predict(data["readings"])
     m = fsr_metrics(pred, data["xy_mm"], data["force_n"], scene.sensor.layout)
     return {k: float(m[k]) for k in ("loc_err_mm_median", "loc_err_mm_p95", "force_accuracy", "force_err_pct_median")}
 

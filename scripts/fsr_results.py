@@ -80,7 +80,7 @@ def learned_estimators(run: Path, onnx: Path | None) -> dict[str, Estimator]:
     if onnx is not None:
         from tactile_learn.runtime import OnnxEstimator
 
-        methods[f"learned ({onnx.name})"] = OnnxEstimator(onnx, threads=1)
+        methods[f"learned ({onnx.name})"] = OnnxEstimator(onnx, threads=1).prepare()
     return methods
 
 

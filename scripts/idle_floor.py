@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=IDLE_SEED)
     args = parser.parse_args(argv)
     for path in args.models:
-        model = OnnxEstimator(path)
+        model = OnnxEstimator(path).prepare()
         card = dict(model.card_)  # checked: the card belongs to this ONNX file
         card["idle"] = measure_idle_floor(model.card_scene_, args.frames, args.seed)
         atomic_write_json(card_path(path), card)

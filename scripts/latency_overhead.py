@@ -58,9 +58,9 @@ def methods_of(task_name: str, scene: Scene) -> dict[str, Any]:
     for name, path in sorted(shipped_models(task_name).items()):
         card = read_card(path)
         if card["scene_digest"] == scene.digest:
-            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1)
+            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1).prepare()
         elif _same_sensor(task_name, card["scene"], scene):
-            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1, scene=scene)
+            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1, scene=scene).prepare()
     return found
 
 
@@ -129,7 +129,7 @@ def _frame_by_frame(
 def bench_gating(model_name: str, n: int, idle_share: float, repeats: int) -> dict[str, Any]:
     from tactile_learn.frame_stream import FrameStream
 
-    est = OnnxEstimator(shipped_models_any(model_name), threads=1)
+    est = OnnxEstimator(shipped_models_any(model_name), threads=1).prepare()
     frames, touched = idle_mixed(est.card_scene_, n, idle_share)
     ways = {"ungated": FrameStream(est), "gated": FrameStream(est, gate=True)}
     singles = [frames[i : i + 1] for i in range(n)]
@@ -195,7 +195,7 @@ def bench_skins(n: int, rounds: int, per_round: int) -> dict[str, Any]:
     large = parse_scene(data)
     seed = 909_090
     frames_small, frames_large = simulate_shard(small, seed, 0, n), simulate_shard(large, seed, 0, n)
-    model = OnnxEstimator(shipped_models("strips")["strips16"], threads=1)
+    model = OnnxEstimator(shipped_models("strips")["strips16"], threads=1).prepare()
     skin = SkinReconstructor(large, model).fit()
     pred_small, pred_large = model.predict(frames_small["readings"]), skin.predict(frames_large["readings"])
     quality = {}

@@ -32,7 +32,7 @@ def _row(checked: CheckedStripModel, data: EvalData) -> dict[str, float]:
     truth = data.truth["pressure"]
     flagged = out["flagged"]
     r_learned = pearson_per_frame(out["learned"], truth)
-    r_fallback = pearson_per_frame(IntersectionEstimator(data.scene).predict(data.inputs), truth)
+    r_fallback = pearson_per_frame(IntersectionEstimator(data.scene).prepare().predict(data.inputs), truth)
 
     def mean(values: np.ndarray, mask: np.ndarray) -> float:
         picked = values[mask & np.isfinite(values)]
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=SUITE_SEED)
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
-    checked = CheckedStripModel(args.model)
+    checked = CheckedStripModel(args.model).prepare()
     task = get_task("strips")
     sets: dict[str, dict[str, dict[str, float]]] = {"in_family": {}, "out_of_family": {}}
     sets["in_family"]["training distribution (test set)"] = _row(checked, task.load_eval_data(args.test))

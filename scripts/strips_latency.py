@@ -31,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     methods = {"intersection": resolve_method("strips", "intersection", scene)}
     for name in args.models:
         methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
-    methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1)
+    methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1).prepare()
     load_before = os.getloadavg()
     calls = {name: est.predict for name, est in methods.items()}
     times = interleaved_times(calls, readings, rounds=args.rounds, per_round=args.per_round, warmup=50)

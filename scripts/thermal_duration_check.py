@@ -39,7 +39,7 @@ def main() -> None:
         for duration in args.duration:
             x, valid = view(data, duration)
             keep = valid & contact
-            predicted, seconds = timed(partial(estimator.predict, x[keep]))
+            predicted, seconds = timed(partial(estimator.predict_proba, x[keep]))  # type: ignore[attr-defined]
             metrics = thermal_metrics(predicted, labels[keep], materials)
             n = int(keep.sum())
             row = {

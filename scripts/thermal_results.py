@@ -49,7 +49,7 @@ def main() -> int:
         from tactile_learn.runtime import OnnxEstimator
 
         for path in args.model:
-            methods[Path(path).name] = OnnxEstimator(path)
+            methods[Path(path).name] = OnnxEstimator(path).prepare()
     result: dict[str, Any] = {"data": args.data, "scene": data.scene.name, "n_pixels": len(data), "methods": {}}
     probe = data.inputs[:64]
     for name, est in methods.items():

@@ -100,7 +100,7 @@ def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Na
             threads=args.threads,
         )
         seconds = time.perf_counter() - mark + out["calibration_s"]
-        model = OnnxEstimator(folder / "model.onnx")
+        model = OnnxEstimator(folder / "model.onnx").prepare()
         scene = model.card_scene_
         data_test = task.load_eval_data(test, scene)
         methods: dict[str, Any] = {}

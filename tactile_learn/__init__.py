@@ -8,5 +8,8 @@ from __future__ import annotations
 
 from synth import __version__
 from synth.errors import ConfigError, DataError, InputError, ModelError, TactileError
+from tactile_learn import _moved
+
+_moved.install()  # old import paths of moved modules (tactile_learn/_moved.py)
 
 __all__ = ["ConfigError", "DataError", "InputError", "ModelError", "TactileError", "__version__"]

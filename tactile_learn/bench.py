@@ -124,18 +124,13 @@ def _same_sensor(task_name: str, card_scene: dict[str, Any], scene: Scene) -> bo
 def _onnx_model(path: Path, threads: int, card: dict[str, Any]) -> Estimator:
     from tactile_learn.runtime import OnnxEstimator
 
-    return _named(OnnxEstimator(path, threads=threads, card=card), f"onnxruntime-{threads}t")
+    return OnnxEstimator(path, threads=threads, card=card, backend=f"onnxruntime-{threads}t").prepare()
 
 
 def _checked_model(path: Path) -> Estimator:
     from tactile_learn.strips_guard import CheckedStripModel
 
-    return _named(CheckedStripModel(path, threads=1), "onnxruntime-1t")
-
-
-def _named(est: Estimator, backend: str) -> Estimator:
-    est.backend = backend
-    return est
+    return CheckedStripModel(path, threads=1, backend="onnxruntime-1t").prepare()
 
 
 def _torch_available() -> bool:
@@ -150,9 +145,7 @@ def _torch_model(weights: Path, card: dict[str, Any]) -> Estimator:
     from synth.scene import parse_scene
     from tactile_learn.torch_estimator import TorchEstimator
 
-    est = TorchEstimator.from_checkpoint(weights, parse_scene(card["scene"]), threads=1)
-    est.backend = "torch-eager-1t"
-    return est
+    return TorchEstimator.from_checkpoint(weights, parse_scene(card["scene"]), threads=1, backend="torch-eager-1t")
 
 
 def bench_task(

@@ -203,7 +203,7 @@ def _card(
 def _add_card_extras(card: dict[str, Any], out: Path, task: Task, scene: Scene, calibrate_on: str | None) -> None:
     """The task's own card entries, measured with the exported model (e.g. the strips flag
     thresholds, calibrated on the run's validation frames) and the sensor's idle noise floor."""
-    extras = task.card_extras(OnnxEstimator(out), calibrate_on, scene)
+    extras = task.card_extras(OnnxEstimator(out).prepare(), calibrate_on, scene)
     if task.name in IDLE_KEYS:  # the sensor's noise floor at rest: the stream's idle gate
         extras["idle"] = measure_idle_floor(scene)
     if extras:

@@ -178,7 +178,7 @@ def _windows(record: np.ndarray, end: np.ndarray | int, width: int) -> np.ndarra
 
 
 def _probabilities(estimator: Estimator, x: np.ndarray) -> np.ndarray:
-    """Class probabilities of a thermal classifier (``predict_proba`` where it has one; the current
-    thermal estimators' ``predict`` returns them)."""
+    """Class probabilities of a thermal classifier (``predict_proba``; an estimator without one is
+    taken to give them from ``predict``)."""
     proba = getattr(estimator, "predict_proba", None)
     return np.asarray(proba(x) if callable(proba) else estimator.predict(x))

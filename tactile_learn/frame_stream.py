@@ -78,13 +78,15 @@ class FrameStream:
     """
 
     def __init__(self, estimator: Estimator, gate: bool | IdleGate = False) -> None:
-        self.estimator = estimator
+        self.estimator = estimator.prepare()  # the session's set-up, once (idempotent)
         task_name, self.scene = _task_and_scene(estimator)
         self.task = get_task(task_name)
         self.shape = tuple(self.task.input_shape(self.scene))
         self.bounds = self.task.fast_bounds(self.scene)
         self.gate: IdleGate | None = card_gate(estimator, self.scene) if gate is True else (gate or None)
-        compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, "predict_checked", estimator.predict)
+        # a classifier's stream gives its probabilities (the task's output, as ``run`` writes it)
+        fast = "predict_proba_checked" if estimator.is_classifier else "predict_checked"
+        compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, fast)
         self._compute = compute
         self.frames = 0
         self.skipped = 0

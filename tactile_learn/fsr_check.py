@@ -33,7 +33,7 @@ import numpy as np
 from synth.scene import Scene
 from synth.sensors import fsr
 
-__all__ = ["DEFAULT_THRESHOLD", "OnePressCheck", "one_press_check"]
+__all__ = ["DEFAULT_THRESHOLD", "OnePressCheck", "one_press_check", "with_one_press"]
 
 #: residual above which a frame is flagged (see the module docstring for the rates it gives)
 DEFAULT_THRESHOLD = 0.05
@@ -43,6 +43,23 @@ DEFAULT_THRESHOLD = 0.05
 JOINT_STARTS_MAX = 32
 
 _CHECKS: dict[tuple[str, float, int, float], OnePressCheck] = {}
+
+
+def with_one_press(
+    inputs: np.ndarray, prediction: np.ndarray, scene: Scene, check: OnePressCheck | None = None
+) -> np.ndarray:
+    """An estimate of the first five FSR columns (B, 5) with ``p_one_press`` appended (B, 6) (the
+    same check for every method; ``check``: the scene's, prepared by the caller); an estimate that
+    has it already is returned as it is."""
+    if prediction.ndim != 2 or prediction.shape[1] != 5:
+        return prediction
+    out = np.empty((len(prediction), 6), dtype=np.float32)
+    out[:, :-1] = prediction
+    if len(prediction):
+        out[:, -1] = (check or one_press_check(scene)).p_one_press(inputs, prediction)
+    else:
+        out[:, -1] = 0.0
+    return out
 
 
 def one_press_check(
@@ -74,6 +91,12 @@ class OnePressCheck:
         self.threshold = threshold
         self.steps = steps
         self.floor_us = floor_us
+
+    def prepare(self) -> OnePressCheck:
+        """Build the film model and load path now rather than on the first check."""
+        self._model  # noqa: B018 - cached_property: built here, once
+        self._path  # noqa: B018
+        return self
 
     @cached_property
     def _model(self) -> tuple[fsr.FsrConfig, fsr.FsrLaw, fsr.Readout, float]:

@@ -116,8 +116,8 @@ def model_scene(task: str, spec: str) -> Scene | None:
 
 
 def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Estimator:
-    """The estimator ``spec`` names for ``task`` on ``scene``: a classical method built for ``scene``,
-    or a model whose card is read once and whose file is verified against it now."""
+    """The estimator ``spec`` names for ``task`` on ``scene``, prepared: a classical method built for
+    ``scene``, or a model whose card is read once and whose file is verified against it now."""
     task_obj = get_task(task)
     classical = task_obj.classical_methods()
     if spec in classical:
@@ -136,6 +136,5 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     # another scene of the same sensor (e.g. a calibrated copy): inputs are checked against it
     own_scene = scene.digest == card["scene_digest"]
     model = OnnxEstimator(path, threads=threads, scene=None if own_scene else scene, card=card)
-    model.card_  # noqa: B018 - verifies the file against its card now, with a clear error
-    model.scene_  # noqa: B018 - fails now, with a clear error, if the shapes do not match
-    return model
+    # prepare verifies the file against its card and the shapes against the scene now, clearly
+    return model.prepare()

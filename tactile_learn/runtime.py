@@ -5,9 +5,10 @@ together (the card's SHA-256 of the ONNX file, the scene digest embedded in the 
 input and output names and shapes) and refuses a corrupt, truncated or mismatched pair with a
 :class:`~synth.errors.ModelError`. ``predict`` validates its input against the card's scene with the
 same checks as the classical estimators (shape, dtype, NaN/inf, negative or saturated readings).
+``prepare()`` loads and checks the model and opens its session, once; ``predict`` changes nothing.
 
     from tactile_learn.runtime import OnnxEstimator
-    model = OnnxEstimator("models/strips16.onnx", threads=1)
+    model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
     maps = model.predict(readings)          # (B, 32) V -> (B, 16, 16) kPa
 """
 
@@ -66,7 +67,6 @@ class OnnxEstimator(Estimator):
     """A learned estimator run by onnxruntime; task-agnostic (the card names the task)."""
 
     kind = "learned"
-    backend = "onnxruntime"
 
     def __init__(
         self,
@@ -74,16 +74,36 @@ class OnnxEstimator(Estimator):
         threads: int = 1,
         verify: bool = True,
         scene: Scene | None = None,
+        backend: str = "onnxruntime",
         card: dict[str, Any] | None = None,
     ) -> None:
         self.path = path
         self.threads = threads
         self.verify = verify
         self.scene = scene
+        self.backend = backend
         #: the card as :func:`read_card` returned it, when the caller has read it already (the method
         #: loader reads each card once); ``None``: read beside ``path``
         self.card = card
         self.name = Path(path).name
+
+    def prepare(self) -> OnnxEstimator:
+        """Read and check the card, the scene and the graph, and open the onnxruntime session, once:
+        a corrupt or mismatched model fails here."""
+        if "run_" not in self.__dict__:
+            if self.scene is not None:
+                self._check_compatible(self.scene)
+            self.task_ = self._task()
+            self.input_check_ = self.task_.input_check(self.scene_)  # the scene's limits, worked out once
+            self.finish_ = self.task_.prediction_finisher(self.scene_)
+            self.session_ = self._session()
+            self.run_ = (self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"])
+        return self
+
+    @property
+    def is_classifier(self) -> bool:  # type: ignore[override]
+        """Whether the card's task classifies (thermal): ``predict_proba`` and labels from ``predict``."""
+        return str(self.card_["task"]) == "thermal"
 
     @cached_property
     def card_(self) -> dict[str, Any]:
@@ -113,16 +133,9 @@ class OnnxEstimator(Estimator):
     @property
     def scene_(self) -> Scene:
         """The scene inputs are checked against: the user's (e.g. a calibrated copy of the same
-        sensor, whose check maps its readings to the nominal sensor) or else the card's. The user's
-        scene is checked against the card's once, not on every ``predict``."""
-        scene = self.scene
-        if scene is None:
-            return self.card_scene_
-        checked = self.__dict__.get("_compatible_scene") is scene
-        if not checked:
-            self._check_compatible(scene)
-            self._compatible_scene = scene
-        return scene
+        sensor, whose check maps its readings to the nominal sensor; checked against the card's
+        once, in :meth:`prepare`) or else the card's."""
+        return self.card_scene_ if self.scene is None else self.scene
 
     def _check_compatible(self, scene: Scene) -> None:
         """``scene`` must give the card scene's input shape and name the same output classes."""
@@ -154,8 +167,7 @@ class OnnxEstimator(Estimator):
     def task_name(self) -> str:
         return str(self.card_["task"])
 
-    @cached_property
-    def session_(self) -> Any:
+    def _session(self) -> Any:
         try:
             import onnxruntime as ort
         except ImportError:
@@ -195,28 +207,32 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{self.path}: the graph's input shape {inputs[0].shape} does not match the card's")
         return session
 
-    def fit(self, X: np.ndarray, y: Any = None) -> OnnxEstimator:
-        return self
-
     def predict(self, X: np.ndarray) -> np.ndarray:
-        self.session_  # noqa: B018 - a corrupt or mismatched model fails before the input is looked at
+        """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`)."""
+        self.prepared_state("run_")  # a model not prepared fails before the input is looked at
         return self.predict_checked(self._checked(X))
 
     def predict_checked(self, x: np.ndarray) -> np.ndarray:
-        run, output, input_name = self._run_first_
+        out = self.predict_proba_checked(x)
+        return out.argmax(axis=1).astype(np.int64) if self.is_classifier else out
+
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """A classifier's probabilities over the task's output labels (B, K + 1)."""
+        self.prepared_state("run_")
+        return self.predict_proba_checked(self._checked(X))
+
+    def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
+        """The graph's first output for a validated batch (for a classifier: its probabilities)."""
+        # the session's run, the first output's name (further outputs, e.g. a residual, are not
+        # needed here) and the input's name, looked up once in prepare
+        run, output, input_name = self.prepared_state("run_")
         if len(x) == 0:
             return self._finish(x, np.zeros((0, *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32))
         return self._finish(x, np.asarray(run(output, {input_name: x})[0], dtype=np.float32))
 
-    @cached_property
-    def _run_first_(self) -> tuple[Any, list[str], str]:
-        """The session's ``run``, the first output's name (a graph's further outputs, e.g. a
-        residual, are not needed for ``predict``) and the input's name, looked up once."""
-        return self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"]
-
     def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
-        """Every output of the graph by name (the first is what :meth:`predict` returns)."""
-        session = self.session_
+        """Every output of the graph by name (the first is what :meth:`predict_proba_checked` returns)."""
+        session = self.prepared_state("session_")
         x = self._checked(X)
         names = [o["name"] for o in self.card_["outputs"]]
         if len(x) == 0:
@@ -226,14 +242,13 @@ class OnnxEstimator(Estimator):
         out[names[0]] = self._finish(x, out[names[0]])
         return out
 
-    @cached_property
-    def task_(self) -> Task:
+    def _task(self) -> Task:
         from tactile_learn.tasks import get_task
 
         return get_task(self.task_name)
 
     def _finish(self, x: np.ndarray, result: np.ndarray) -> np.ndarray:
-        return self.task_.finish_prediction(x, result, self.scene_)
+        return self.finish_(x, result)
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
-        return self.task_.check_inputs(X, self.scene_)
+        return self.input_check_(X)

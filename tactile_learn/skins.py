@@ -135,12 +135,12 @@ class SkinReconstructor(Estimator):
         from tactile_learn.runtime import OnnxEstimator
 
         if isinstance(self.window_model, Estimator):
-            return self.window_model
+            return self.window_model.prepare()
         spec = str(self.window_model)
         path = Path(spec) if spec.endswith(".onnx") else shipped_models("strips").get(spec)
         if path is None:
             raise ConfigError(f"window_model: {spec!r} is not a shipped strip model or an .onnx path")
-        return OnnxEstimator(path, threads=self.threads)
+        return OnnxEstimator(path, threads=self.threads).prepare()
 
     @cached_property
     def window_scene_(self) -> Scene:

@@ -19,7 +19,7 @@ than inventing a pairing). :class:`CheckedStripModel` returns the learned map wh
 not flagged and the fallback's map where it is, with the checks and flags beside them::
 
     from tactile_learn.strips_guard import CheckedStripModel
-    model = CheckedStripModel("models/strips16.onnx")
+    model = CheckedStripModel("models/strips16.onnx").prepare()
     out = model.check(readings)        # pressure, learned, residual, balance, flagged
     maps = model.predict(readings)     # = out["pressure"]
 
@@ -29,9 +29,7 @@ run's validation frames (the card records it; ``scripts/strips_flagging.py`` mea
 
 from __future__ import annotations
 
-from functools import cached_property
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -40,9 +38,12 @@ from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.runtime import OnnxEstimator, card_path
 
-__all__ = ["DEFAULT_FALLBACK", "CheckedStripModel", "calibrate_threshold"]
+__all__ = ["CHECK_OUTPUTS", "DEFAULT_FALLBACK", "CheckedStripModel", "calibrate_threshold"]
 
 DEFAULT_FALLBACK = "intersection"
+#: the exported graph's further outputs, per frame: the readings residual of its map (in noise
+#: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
+CHECK_OUTPUTS = ("residual", "balance")
 #: quantile of each check on in-distribution frames that sets its flag threshold (1-2 % false flags)
 THRESHOLD_QUANTILE = 0.99
 
@@ -61,7 +62,6 @@ class CheckedStripModel(Estimator):
 
     task = "strips"
     kind = "learned"
-    backend = "onnxruntime"
 
     def __init__(
         self,
@@ -70,20 +70,29 @@ class CheckedStripModel(Estimator):
         thresholds: dict[str, float] | None = None,
         threads: int = 1,
         scene: Scene | None = None,
+        backend: str = "onnxruntime",
     ) -> None:
         self.model = model if isinstance(model, OnnxEstimator) else OnnxEstimator(model, threads=threads, scene=scene)
         self.fallback = fallback
         self.thresholds = thresholds
+        self.threads = threads
+        self.scene = scene
+        self.backend = backend
         self.name = f"{Path(str(self.model.path)).stem}+check"
 
     @property
     def scene_(self) -> Scene:
         return self.model.scene_
 
-    @cached_property
-    def thresholds_(self) -> dict[str, float]:
-        from tactile_learn.tasks.strips import CHECK_OUTPUTS
+    def prepare(self) -> CheckedStripModel:
+        """Prepare the model, read its flag thresholds and resolve the fallback, once."""
+        if "fallback_" not in self.__dict__:
+            self.model.prepare()
+            self.thresholds_ = self._thresholds()
+            self.fallback_ = self._fallback()
+        return self
 
+    def _thresholds(self) -> dict[str, float]:
         names = {o["name"] for o in self.model.card_["outputs"]}
         if not set(CHECK_OUTPUTS) <= names:
             raise ModelError(
@@ -97,21 +106,19 @@ class CheckedStripModel(Estimator):
             raise ModelError(f"{card_path(self.model.path)}: the card has no consistency thresholds")
         return {k: float(consistency["thresholds"][k]) for k in CHECK_OUTPUTS}
 
-    @cached_property
-    def fallback_(self) -> Estimator | None:
-        if self.fallback is None or isinstance(self.fallback, Estimator):
-            return self.fallback
+    def _fallback(self) -> Estimator | None:
+        if self.fallback is None:
+            return None
+        if isinstance(self.fallback, Estimator):
+            return self.fallback.prepare()
         from tactile_learn.methods import resolve_method
 
         return resolve_method("strips", self.fallback, self.scene_)
 
-    def fit(self, X: np.ndarray, y: Any = None) -> CheckedStripModel:
-        return self
-
     def check(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """``pressure`` (the fallback's map on flagged frames), ``learned`` (the model's map),
         ``residual``, ``balance`` and ``flagged`` (B,) of readings ``X`` (B, N+M)."""
-        thresholds = self.thresholds_
+        thresholds: dict[str, float] = self.prepared_state("thresholds_")
         outputs = self.model.predict_all(X)
         learned = outputs["pressure"]
         flagged = np.zeros(len(learned), dtype=bool)

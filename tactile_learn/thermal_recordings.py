@@ -33,13 +33,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import median_filter
 
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
 from synth.materials import accepted_labels, resolve_label
+from tactile_learn.thermal_signal import FORCE_FILTER_S, press_onset, press_profile  # re-exported: old home
 
 __all__ = [
+    "FORCE_FILTER_S",
     "INDEX",
     "OPTIONAL_COLUMNS",
     "Touch",
@@ -62,8 +63,6 @@ OPTIONAL_COLUMNS = ("passive_c", "force")
 MAX_SAMPLES = 10_000_000
 #: DictReader key of the values in a row beyond its header's columns
 _EXTRA = "\x00extra"
-#: median filter length (s) that removes the force sensor's dropouts before the onset is read
-FORCE_FILTER_S = 0.125
 
 
 @dataclass
@@ -326,49 +325,3 @@ def resample(touch: Touch, fs: float) -> tuple[np.ndarray, float | None]:
     values = resample_channel(touch, "temperature_c", fs)
     onset = None if touch.onset_s is None else (touch.onset_s - float(touch.time_s[0])) * fs
     return values, onset
-
-
-def press_profile(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> np.ndarray | None:
-    """The force record median-filtered over ``filter_s`` (dropouts and the dead band removed) and
-    divided by its plateau (the median of the filtered force where it exceeds a quarter of its
-    maximum): 0 before the press, ~1 while pressed, whatever the force's unit. ``None`` when the
-    record holds no press (no positive force) or has fewer than 3 samples."""
-    t = np.asarray(time_s, dtype=np.float64)
-    f = np.asarray(force, dtype=np.float64)
-    if len(t) < 3:
-        return None
-    fs = 1.0 / float(np.median(np.diff(t)))
-    size = max(1, round(filter_s * fs)) | 1  # odd: centred
-    smooth = median_filter(f, size=size, mode="nearest")
-    top = float(smooth.max())
-    if not top > 0:
-        return None
-    plateau = float(np.median(smooth[smooth >= 0.25 * top]))
-    return np.asarray(smooth / plateau)
-
-
-def press_onset(time_s: np.ndarray, force: np.ndarray, filter_s: float = FORCE_FILTER_S) -> float | None:
-    """The contact onset read from a force record: the time the press crosses half its plateau.
-
-    A median filter of ``filter_s`` removes dropouts (a force sensor with a dead band reads 0, then
-    jumps to its first level, and may toggle between them while the contact builds up); the plateau
-    is the median of the filtered force where it exceeds a quarter of its maximum; the onset is the
-    first crossing of half the plateau, interpolated between samples (:func:`press_profile`). Why
-    half the plateau and not the first touch: the first touch hides in the dead band and the
-    dropouts (some records start already in light contact), while the middle of the rise is where
-    the force changes fastest, so its time is the least sensitive to noise, and it is unit-free (the
-    force may be in any unit). Thermal contact starts a little earlier (at the first touch: up to
-    ~1 s for a slow press). Returns ``None`` when the record holds no press (no positive force) or
-    starts above half the plateau (the onset is before the record).
-    """
-    t = np.asarray(time_s, dtype=np.float64)
-    profile = press_profile(t, force, filter_s)
-    if profile is None:
-        return None
-    above = profile >= 0.5
-    i = int(np.argmax(above))
-    if i == 0:
-        return None
-    lo, hi = profile[i - 1], profile[i]
-    frac = (0.5 - lo) / (hi - lo) if hi > lo else 1.0  # hi >= 0.5 > lo
-    return float(t[i - 1] + frac * (t[i] - t[i - 1]))

@@ -19,7 +19,6 @@ __all__ = ["TorchEstimator"]
 
 class TorchEstimator(Estimator):
     kind = "learned"
-    backend = "torch"
 
     def __init__(
         self,
@@ -28,6 +27,7 @@ class TorchEstimator(Estimator):
         scene: Scene,
         name: str = "torch",
         batch_size: int = 4096,
+        backend: str = "torch",
         checkpoint: dict[str, Any] | None = None,
     ) -> None:
         self.net = net
@@ -35,17 +35,37 @@ class TorchEstimator(Estimator):
         self.scene = scene
         self.name = name
         self.batch_size = batch_size
+        self.backend = backend
         #: what the weights file held besides the network (task, size, stats, a run's result)
         self.checkpoint = checkpoint or {}
 
+    @property
+    def is_classifier(self) -> bool:  # type: ignore[override]
+        """Whether the task classifies (thermal): ``predict_proba`` and labels from ``predict``."""
+        return self.task_name == "thermal"
+
+    def prepare(self) -> TorchEstimator:
+        """Look the task up once (its input check and the completion of a raw prediction)."""
+        if "task_" not in self.__dict__:
+            self.task_ = get_task(self.task_name)
+            self.input_check_ = self.task_.input_check(self.scene)
+            self.finish_ = self.task_.prediction_finisher(self.scene)
+        return self
+
     @classmethod
     def from_checkpoint(
-        cls, source: str | Path, scene: Scene | None = None, name: str | None = None, threads: int | None = None
+        cls,
+        source: str | Path,
+        scene: Scene | None = None,
+        name: str | None = None,
+        threads: int | None = None,
+        backend: str = "torch",
     ) -> TorchEstimator:
         """The network of a finished run folder or a model's ``NAME.pt`` (see
-        :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on);
-        ``threads`` sets torch's intra-op threads (process-wide). The one way from weights on disk to a
-        network: export, fine-tuning (``train --init``) and bench's torch backend all load through it."""
+        :mod:`tactile_learn.checkpoints`), on ``scene`` (default: the one it was trained on),
+        prepared; ``threads`` sets torch's intra-op threads (process-wide). The one way from weights
+        on disk to a network: export, fine-tuning (``train --init``) and bench's torch backend all
+        load through it."""
         from tactile_learn.checkpoints import build_net, load_weights, weights_scene
 
         saved = load_weights(source)
@@ -57,14 +77,20 @@ class TorchEstimator(Estimator):
         if threads:
             torch.set_num_threads(threads)
         label = name or Path(source).name  # NAME.pt, or the run folder's name
-        return cls(build_net(saved, scene), str(saved["task"]), scene, name=label, checkpoint=saved)
+        return cls(
+            build_net(saved, scene), str(saved["task"]), scene, name=label, checkpoint=saved, backend=backend
+        ).prepare()
 
-    def fit(self, X: np.ndarray, y: Any = None) -> TorchEstimator:
-        return self
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        """The network's output (a classifier's: the most probable label, int64)."""
+        out = self.predict_proba(X)
+        return out.argmax(axis=1).astype(np.int64) if self.is_classifier else out
 
     @torch.inference_mode()
-    def predict(self, X: np.ndarray) -> np.ndarray:
-        x = get_task(self.task_name).check_inputs(X, self.scene)
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        """The network's output for ``X`` (a classifier's: probabilities)."""
+        self.prepared_state("task_")  # an unprepared estimator fails before any work
+        x = self.input_check_(X)
         was_training = self.net.training
         self.net.eval()
         try:
@@ -79,4 +105,4 @@ class TorchEstimator(Estimator):
                 raw = np.concatenate(parts).astype(np.float32, copy=False)
         finally:
             self.net.train(was_training)
-        return get_task(self.task_name).finish_prediction(x, raw, self.scene)
+        return self.finish_(x, raw)

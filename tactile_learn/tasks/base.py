@@ -12,6 +12,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -21,7 +22,7 @@ from synth.dataset import Dataset, load_arrays
 from synth.errors import DataError, InputError
 from synth.scene import Scene, load_scene
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.validation import as_batch
+from tactile_learn.validation.common import as_batch
 
 if TYPE_CHECKING:  # torch only for type checking: importing a task never imports torch
     import torch
@@ -150,15 +151,25 @@ class Task(ABC):
         or learned, returns this): default unchanged. The fsr task appends its one-press check."""
         return prediction
 
+    def prediction_finisher(self, scene: Scene) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """:meth:`finish_prediction` for ``scene`` with its set-up done once (an estimator builds it
+        in ``prepare``): ``finisher(inputs, prediction)``."""
+        return partial(_finish, self, scene)
+
     def same_sensor(self, a: Scene, b: Scene) -> bool:
         """Whether a model trained on scene ``a`` applies to scene ``b`` as it is (default: the same
         scene digest; a task whose scenes also describe stimuli compares the sensor alone)."""
         return a.digest == b.digest
 
     def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """Validated float32 batch for ``predict`` (every estimator, classical or ONNX, calls this).
-        Tasks override it to add their own physical bounds (e.g. a saturated ADC)."""
-        return as_batch(inputs, self.input_shape(scene), name=self.input_key)
+        """Validated float32 batch for ``predict``: :meth:`input_check` applied once."""
+        return self.input_check(scene)(inputs)
+
+    def input_check(self, scene: Scene) -> Callable[[Any], np.ndarray]:
+        """The scene's input check with its limits worked out once (an estimator builds it in
+        ``prepare`` and calls it on every batch). Tasks override it with their sensor's check in
+        :mod:`tactile_learn.validation` (its physical bounds, e.g. a saturated ADC)."""
+        return partial(as_batch, feature_shape=self.input_shape(scene), name=self.input_key)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
         """``(low, high, low_strict)``: a float32 batch of the right shape whose values all satisfy
@@ -179,9 +190,9 @@ class Task(ABC):
         raise NotImplementedError(f"task {self.name!r} has no calibration")
 
     def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
-        """Metrics of ``estimator`` on ``data``. Tasks that evaluate several views of the same
-        frames (e.g. thermal contact durations) override this."""
-        return self.metrics(estimator.predict(data.inputs), data)
+        """Metrics of ``estimator`` (prepared here if it is not yet) on ``data``. Tasks that evaluate
+        several views of the same frames (e.g. thermal contact durations) override this."""
+        return self.metrics(estimator.prepare().predict(data.inputs), data)
 
     # ---- learning (torch imported inside the implementations) --------------------------------
 
@@ -214,6 +225,10 @@ class Task(ABC):
     def loss(self, output: torch.Tensor, targets: dict[str, torch.Tensor]) -> torch.Tensor:
         """Training loss of the network output against the targets from ``training_batch``."""
         raise NotImplementedError(f"task {self.name!r} has no learned models")
+
+
+def _finish(task: Task, scene: Scene, inputs: np.ndarray, prediction: np.ndarray) -> np.ndarray:
+    return task.finish_prediction(inputs, prediction, scene)
 
 
 def readable_frames(task: Task, data: EvalData) -> tuple[EvalData, dict[str, Any]]:

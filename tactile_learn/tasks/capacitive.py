@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from collections.abc import Callable
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,9 +41,9 @@ from synth.scene import Scene, load_scene, parse_scene
 from synth.sensors.capacitive.config import G_TO_N, CalibrationTable, CapacitiveConfig
 from tactile_learn.calibration.capacitive import CapacitiveFrontEnd, fit_calibration
 from tactile_learn.contact_metrics import contact_metrics
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
-from tactile_learn.validation import capacitive_input
+from tactile_learn.validation.capacitive import capacitive_input
 
 if TYPE_CHECKING:
     import torch
@@ -100,8 +101,9 @@ class CapacitiveTask(Task):
         g = capacitive_config(scene).geometry
         return (g.n_rows, g.n_cols)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        return capacitive_input(inputs, capacitive_config(scene), "cell_load")
+    def input_check(self, scene: Scene) -> Callable[[Any], np.ndarray]:
+        """Calibrated cell loads (:func:`~tactile_learn.validation.capacitive.capacitive_input`)."""
+        return partial(capacitive_input, config=capacitive_config(scene), quantity="cell_load")
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
         # capacitive_input's cell_load check: finite, not below a tenth of the full scale under zero
@@ -113,13 +115,7 @@ class CapacitiveTask(Task):
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator
 
-        def fitted(cls: type[Estimator]) -> Callable[[Scene], Estimator]:
-            def make(scene: Scene) -> Estimator:
-                return cls(scene).fit()  # type: ignore[call-arg]
-
-            return make
-
-        return {"bicubic": fitted(BicubicEstimator), "deconvolution": fitted(DeconvolutionEstimator)}
+        return {"bicubic": prepared(BicubicEstimator), "deconvolution": prepared(DeconvolutionEstimator)}
 
     # ---- data ------------------------------------------------------------------------------------
 

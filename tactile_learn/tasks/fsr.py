@@ -46,6 +46,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -56,9 +57,11 @@ from synth.errors import DataError
 from synth.io import atomic_write_text
 from synth.scene import Scene
 from synth.sensors import fsr
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.calibration.fsr_film import calibrate_gains, to_nominal_film
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
-from tactile_learn.validation import as_batch
+from tactile_learn.validation.common import InputCheck, as_batch
+from tactile_learn.validation.fsr import fsr_check
 
 if TYPE_CHECKING:
     import torch
@@ -80,47 +83,6 @@ PAPER_FORCE_RANGE_N: tuple[float, float] = (1.0, 10.0)
 #: the paper's figures (seed 002)
 PAPER_FORCE_ACCURACY = 0.8823
 PAPER_SPATIAL_RESOLUTION_MM = 2.5
-
-
-def to_nominal_film(readings: np.ndarray, config: fsr.FsrConfig, gains: np.ndarray) -> np.ndarray:
-    """Readings of a film with part ``gains`` (6,) mapped to those of the nominal film (gain 1).
-
-    Code -> conductance -> excess over the leak divided by the gain -> code (not re-quantised).
-    """
-    readout = fsr.Readout(config.readout)
-    leak = config.element.leak_conductance_us
-    conductance = readout.conductance_us(readings)
-    # the excess may be slightly negative at code 0 (bin centre below the leak): kept, so that unit
-    # gains are the identity; gains >= 0.05 (validated)
-    excess = (conductance - leak) / np.asarray(gains, dtype=np.float64)
-    return readout.codes(leak + excess, quantise=False).astype(np.float32)
-
-
-def calibrate_gains(
-    readings: np.ndarray,
-    xy_mm: np.ndarray,
-    force_n: np.ndarray,
-    config: fsr.FsrConfig,
-    min_load_factor: float = 3.0,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Part gains (6,) of one film from known presses, and the number of presses used per sensor.
-
-    Modelled conductance excess (nominal gain, median tip radius) against measured excess, least
-    squares through the origin per sensor, over presses whose modelled load on that sensor is at
-    least ``min_load_factor`` times the break force (near the break the law is too steep to
-    calibrate). A sensor without such a press keeps gain 1.
-    """
-    law = fsr.FsrLaw(config.element)
-    readout = fsr.Readout(config.readout)
-    tip = float(np.median(config.stimulus.tip_radii_mm))
-    loads = fsr.sensor_loads(config, xy_mm, force_n, np.full(len(force_n), tip))
-    model = law.conductance_us(loads, 1.0) - config.element.leak_conductance_us
-    measured = readout.conductance_us(readings) - config.element.leak_conductance_us
-    use = (loads >= min_load_factor * config.element.break_force_n) & (readings < readout.full_scale)
-    num = np.where(use, model * measured, 0.0).sum(axis=0)
-    den = np.where(use, model * model, 0.0).sum(axis=0)
-    gains = np.where(den > 0, num / np.where(den > 0, den, 1.0), 1.0)  # guarded: unused sensors keep 1
-    return np.clip(gains, 0.05, 20.0), use.sum(axis=0)
 
 
 def _group_metrics(
@@ -197,31 +159,12 @@ class FsrTask(Task):
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
         return (fsr.N_SENSORS,)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """Validated float32 readings (B, 6): finite, non-negative ADC codes below full scale.
-
-        A code at the ADC's full scale means a saturated divider (the FSR law cannot reach it): the
-        frame is refused. If the scene carries a film calibration (``[fsr.film] gains``), the
-        readings are then mapped to the nominal film (see :func:`to_nominal_film`).
-        """
-        config: fsr.FsrConfig = scene.sensor
-        full = fsr.Readout(config.readout).full_scale
-        batch = as_batch(
-            inputs,
-            self.input_shape(scene),
-            name="readings",
-            upper=float(full),
-            upper_name=f"the {config.readout.adc_bits}-bit ADC's full scale",
-        )
-        if config.film.gains is not None and len(batch):
-            batch = to_nominal_film(batch, config, np.asarray(config.film.gains))
-        return batch
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.fsr.fsr_check`."""
+        return fsr_check(scene.sensor)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        config: fsr.FsrConfig = scene.sensor
-        if config.film.gains is not None:  # check_inputs maps the film's readings: not a pure check
-            return None
-        return 0.0, float(fsr.Readout(config.readout).full_scale), False
+        return fsr_check(scene.sensor).bounds()
 
     def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
         """All six columns 0: no contact (``p_one_press`` 0 too, as for every undetected frame)."""
@@ -230,14 +173,17 @@ class FsrTask(Task):
     def finish_prediction(self, inputs: np.ndarray, prediction: np.ndarray, scene: Scene) -> np.ndarray:
         """Append ``p_one_press`` (:class:`~tactile_learn.fsr_check.OnePressCheck`) to an estimate of
         the five other columns; an estimate that has it already is returned as it is."""
-        if prediction.ndim != 2 or prediction.shape[1] != len(COLUMNS) - 1:
-            return prediction
-        from tactile_learn.fsr_check import one_press_check
+        from tactile_learn.fsr_check import with_one_press
 
-        out = np.empty((len(prediction), len(COLUMNS)), dtype=np.float32)
-        out[:, :-1] = prediction
-        out[:, -1] = one_press_check(scene).p_one_press(inputs, prediction) if len(prediction) else 0.0
-        return out
+        return with_one_press(inputs, prediction, scene)
+
+    def prediction_finisher(self, scene: Scene) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+        """:meth:`finish_prediction` with the scene's one-press check built once (looking it up
+        hashes the scene: at batch 1 that cost more than the network)."""
+        from tactile_learn.fsr_check import one_press_check, with_one_press
+
+        check = one_press_check(scene).prepare()
+        return partial(with_one_press, scene=scene, check=check)
 
     def classical_methods(self) -> dict[str, Callable[[Scene], Estimator]]:
         from tactile_learn.estimators.classical.triangulation import (
@@ -245,7 +191,10 @@ class FsrTask(Task):
             TriangulationEstimator,
         )
 
-        return {"triangulation": TriangulationEstimator, "triangulation_fit": FittedTriangulationEstimator}
+        return {
+            "triangulation": prepared(TriangulationEstimator),
+            "triangulation_fit": prepared(FittedTriangulationEstimator),
+        }
 
     def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
         path = Path(source)

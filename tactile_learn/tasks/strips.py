@@ -11,10 +11,12 @@ import numpy as np
 from synth.errors import DataError
 from synth.scene import Scene
 from synth.sensors.strips.config import StripsConfig
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.metrics import strip_map_metrics
+from tactile_learn.strips_guard import CHECK_OUTPUTS  # re-exported: its old home
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
-from tactile_learn.validation import as_batch
+from tactile_learn.validation.common import InputCheck
+from tactile_learn.validation.strips import strips_check
 
 if TYPE_CHECKING:
     import torch
@@ -29,10 +31,6 @@ __all__ = [
     "ghost_to_real",
     "pairing",
 ]
-
-#: the exported graph's further outputs, per frame: the readings residual of its map (in noise
-#: standard deviations) and the balance of its row and column totals (tactile_learn.strips_consistency)
-CHECK_OUTPUTS = ("residual", "balance")
 
 
 def _apart(extra: dict[str, np.ndarray], pitch_mm: float) -> np.ndarray:
@@ -189,18 +187,12 @@ class StripsTask(Task):
 
         return a.task == b.task == self.name and sensor(a) == sensor(b)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        readout = scene.sensor.readout
-        return as_batch(
-            inputs,
-            self.input_shape(scene),
-            name="readings",
-            upper=readout.full_scale_v,
-            upper_name="the ADC's full scale",
-        )
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.strips.strips_check`."""
+        return strips_check(scene.sensor)
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        return 0.0, float(scene.sensor.readout.full_scale_v), False
+        return strips_check(scene.sensor).bounds()
 
     def empty_prediction(self, n: int, scene: Scene) -> np.ndarray:
         g = scene.sensor.geometry
@@ -210,7 +202,7 @@ class StripsTask(Task):
         from tactile_learn.estimators.classical.intersection import IntersectionEstimator
         from tactile_learn.estimators.classical.projection import ProjectionEstimator
 
-        return {"intersection": IntersectionEstimator, "projection": ProjectionEstimator}
+        return {"intersection": prepared(IntersectionEstimator), "projection": prepared(ProjectionEstimator)}
 
     def load_eval_data(self, source: str | Path, scene: Scene | None = None) -> EvalData:
         path = Path(source)
@@ -238,7 +230,9 @@ class StripsTask(Task):
     def evaluate(self, estimator: Estimator, data: EvalData) -> dict[str, Any]:
         """Metrics of the estimate; for a general learned model (one with a readings residual and a
         flag threshold) also its ``flag`` report: how many frames it flags, how good its maps are on
-        flagged and unflagged frames, and the metrics with the fallback on flagged frames."""
+        flagged and unflagged frames, and the metrics with the fallback on flagged frames. The
+        estimator is prepared here if it is not yet."""
+        estimator.prepare()
         checked = _checked_model(estimator)
         if checked is None:
             return self.metrics(estimator.predict(data.inputs), data)
@@ -372,7 +366,7 @@ def _checked_model(estimator: Estimator) -> Any:
         card = estimator.card_
         has_outputs = set(CHECK_OUTPUTS) <= {o["name"] for o in card["outputs"]}
         if has_outputs and "thresholds" in card.get("consistency", {}):
-            return CheckedStripModel(estimator)
+            return CheckedStripModel(estimator).prepare()
     return None
 
 

@@ -46,14 +46,16 @@ import numpy as np
 
 from synth.config import dumps_toml
 from synth.dataset import Dataset, load_arrays
-from synth.errors import ConfigError, DataError, InputError
+from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
 from synth.materials import Material
 from synth.scene import Scene, load_scene, parse_scene
 from synth.sensors.thermal import ThermalConfig
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Estimator, prepared
 from tactile_learn.tasks.base import EvalData, Task
-from tactile_learn.validation import as_batch
+from tactile_learn.thermal_signal import onset_seconds, windows
+from tactile_learn.validation.common import InputCheck
+from tactile_learn.validation.thermal import thermal_check, thermal_input_shape
 
 if TYPE_CHECKING:
     import torch
@@ -147,14 +149,6 @@ def labels_from_materials(
         return np.where(idx < 0, n_materials, idx)
     of = config.class_of_material
     return np.where(idx < 0, len(config.class_names), of[np.clip(idx, 0, len(of) - 1)])
-
-
-def windows(records: np.ndarray, lengths: np.ndarray, end: np.ndarray, width: int) -> np.ndarray:
-    """(N, width) windows of ``records`` (N, R) ending before sample ``end`` (exclusive), clipped to
-    each record's valid ``lengths`` (samples before 0 repeat the first one, after the end the last)."""
-    idx = np.asarray(end)[:, None] - width + np.arange(width)[None, :]
-    idx = np.clip(idx, 0, np.asarray(lengths)[:, None] - 1)
-    return np.take_along_axis(records, np.clip(idx, 0, records.shape[1] - 1), axis=1).astype(np.float32)
 
 
 def channel_keys(config: ThermalConfig) -> tuple[str, ...]:
@@ -263,10 +257,7 @@ class ThermalTask(Task):
     bench_samples = 200  # touches: 3,200 pixel curves, each viewed at four contact durations
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
-        cfg = _config(scene)
-        if len(cfg.channels) == 1:
-            return (cfg.window_samples,)
-        return (len(cfg.channels), cfg.window_samples)
+        return thermal_input_shape(_config(scene))
 
     def train_keys_for(self, scene: Scene) -> tuple[str, ...]:
         extra = tuple(c for c in _config(scene).channels if c != "heated")
@@ -275,26 +266,12 @@ class ThermalTask(Task):
     def output_labels(self, scene: Scene) -> tuple[str, ...]:
         return class_names(scene)
 
-    def check_inputs(self, inputs: Any, scene: Scene) -> np.ndarray:
-        """Shape, NaN/inf, and the ADC's range: a reading at either end of ``adc_range_c`` is
-        saturated; below a range starting at 0 degC it is a negative (invalid) reading."""
-        lo, hi = _config(scene).readout.adc_range_c
-        x = as_batch(
-            inputs,
-            self.input_shape(scene),
-            name="readings",
-            allow_negative=lo < 0,
-            upper=hi,
-            upper_name="the ADC's top (degC)",
-        )
-        if x.size and (x <= lo).any():
-            row = int(np.argwhere(x <= lo)[0][0])
-            raise InputError(f"readings: saturated reading at or below the ADC's bottom ({lo:g} degC) in frame {row}")
-        return x
+    def input_check(self, scene: Scene) -> InputCheck:
+        """:func:`~tactile_learn.validation.thermal.thermal_check`."""
+        return thermal_check(_config(scene))
 
     def fast_bounds(self, scene: Scene) -> tuple[float, float, bool] | None:
-        lo, hi = _config(scene).readout.adc_range_c
-        return float(lo), float(hi), True  # strictly inside the ADC's range (check_inputs)
+        return thermal_check(_config(scene)).bounds()
 
     def example_inputs(self, arrays: dict[str, np.ndarray], scene: Scene) -> np.ndarray:
         """Estimator inputs from simulated dataset arrays (``readings`` (B, P, R) and the latents):
@@ -320,9 +297,9 @@ class ThermalTask(Task):
         from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
 
         return {
-            "curve_match": CurveMatchEstimator,
-            "physics_fit": PhysicsFitEstimator,
-            "calibrated": CalibratedFitEstimator,
+            "curve_match": prepared(CurveMatchEstimator),
+            "physics_fit": prepared(PhysicsFitEstimator),
+            "calibrated": prepared(CalibratedFitEstimator),
         }
 
     # ---- evaluation data -----------------------------------------------------------------------
@@ -444,15 +421,11 @@ class ThermalTask(Task):
         return data
 
     def _detect_onsets(self, records: np.ndarray, cfg: ThermalConfig) -> np.ndarray:
-        from tactile_learn.estimators.classical.curve_match import detect_onset
-
-        fs = cfg.readout.sampling_hz
-        onset = detect_onset(records, fs, cfg.readout.adc_step_k)
-        # the onset lies between the last baseline sample k0 and the next one
-        return np.where(onset.detected, (onset.index + 0.5) / fs, 0.0)
+        return onset_seconds(records, cfg.readout.sampling_hz, cfg.readout.adc_step_k)[0]
 
     def _from_recordings(self, path: Path, scene: Scene) -> EvalData:
-        from tactile_learn.thermal_recordings import press_onset, press_profile, read_recordings, resample_channel
+        from tactile_learn.thermal_recordings import read_recordings, resample_channel
+        from tactile_learn.thermal_signal import press_onset, press_profile
 
         cfg = _config(scene)
         fs = cfg.readout.sampling_hz
@@ -546,10 +519,12 @@ class ThermalTask(Task):
     ) -> dict[str, Any]:
         """Metrics of ``estimator`` on every duration view (see the module docstring); with
         ``group_by`` (a column of a recording's ``touches.csv``, or a latent of simulated data) the
-        same metrics per value of that column under ``by_group``."""
+        same metrics per value of that column under ``by_group``. The estimator (a classifier: its
+        ``predict_proba`` is evaluated) is prepared here if it is not yet."""
+        proba = estimator.prepare().predict_proba  # type: ignore[attr-defined]  # thermal methods all classify
         if "record" not in data.extra:
-            return self.metrics(estimator.predict(data.inputs), data)
-        return self.evaluate_by_duration(lambda d, x, rows: estimator.predict(x), data, durations, group_by)
+            return self.metrics(proba(data.inputs), data)
+        return self.evaluate_by_duration(lambda d, x, rows: proba(x), data, durations, group_by)
 
     def evaluate_by_duration(
         self,
@@ -621,10 +596,10 @@ class ThermalTask(Task):
 
         Recordings of a real fingertip (a ``passive_c`` or ``force`` column, labels that are
         families or classes, a real-sensor scene, or ``channels`` given) get the real-sensor model
-        (:func:`tactile_learn.thermal_adapt.calibrate_recordings`: lags, heater, drift, contact
+        (:func:`tactile_learn.calibration.thermal_scene.calibrate_recordings`: lags, heater, drift, contact
         build-up, passive channel; the report goes to ``out`` with the suffix ``.json``); plain
         single-material recordings of a seed-like sensor get the seed's model
-        (:func:`~tactile_learn.estimators.classical.physics_fit.calibrate_sensor`). Either way the
+        (:func:`~tactile_learn.calibration.thermal_seed.calibrate_sensor`). Either way the
         scene is validated before it is written, atomically: a failed calibration writes nothing."""
         from tactile_learn.thermal_recordings import read_recordings
 
@@ -642,7 +617,7 @@ class ThermalTask(Task):
         )
         if real:
             from synth.io import atomic_write_json
-            from tactile_learn.thermal_adapt import CHANNEL_CHOICES, calibrate_recordings, write_scene
+            from tactile_learn.calibration.thermal_scene import CHANNEL_CHOICES, calibrate_recordings, write_scene
 
             has_passive = all(t.passive_c is not None for t in touches)
             chosen = CHANNEL_CHOICES[channels or ("all" if has_passive else "heated")]
@@ -660,7 +635,7 @@ class ThermalTask(Task):
                 "not_identified": report["not_identified"],
                 "seconds": report["solver"]["seconds"],
             }
-        from tactile_learn.estimators.classical.physics_fit import calibrate_sensor
+        from tactile_learn.calibration.thermal_seed import calibrate_sensor
 
         fitted, summary = calibrate_sensor(touches, cfg)
         calibrated = dataclasses.replace(
@@ -776,7 +751,6 @@ def oracle_accuracy_by_duration(data: EvalData, limit: int | None = None) -> dic
             raise DataError(f"{data.source}: the oracle needs {key} (generate with the 'latent' output)")
     if limit is not None:
         data = data.subset(slice(0, limit))
-    task = ThermalTask()
     out: dict[str, Any] = {"oracle_accuracy_by_duration": {}, "oracle_family_accuracy_by_duration": {}}
     materials = _config(data.scene).material_list
     for d in DURATIONS_S:
@@ -788,10 +762,8 @@ def oracle_accuracy_by_duration(data: EvalData, limit: int | None = None) -> dic
             heat_capacity=data.extra["latent_heat_capacity_j_m2k"][valid],
             loss=data.extra["latent_loss_w_m2k"][valid],
             heater=data.extra["latent_heater_w_m2"][valid],
-        )
-        m = thermal_metrics(
-            oracle.predict(task.check_inputs(x[valid], data.scene)), data.truth["label"][valid], materials
-        )
+        ).prepare()
+        m = thermal_metrics(oracle.predict_proba(x[valid]), data.truth["label"][valid], materials)
         out["oracle_accuracy_by_duration"][_key(d)] = m["accuracy"]
         out["oracle_family_accuracy_by_duration"][_key(d)] = m["family_accuracy"]
     return out

@@ -4,7 +4,7 @@ and readout -> noise -> ADC (the stages' physics in :mod:`synth.sensors.strips.p
 The stimulus is either drawn contacts (:class:`~synth.sensors.strips.stimuli.StripContacts`: the
 mechanics runs only over their pressure windows) or a user's pressure field on the whole lattice
 (:class:`~synth.sensors.strips.stimuli.PressureField`). Both give the same stress for the same
-pressure (``tests/test_strips_physics.py``).
+pressure (``tests/synth/sensors/test_strips_physics.py``).
 """
 
 from __future__ import annotations

@@ -21,16 +21,15 @@ lag puts the visible departure well after the touch).
 from __future__ import annotations
 
 import math
-from functools import cached_property
-from typing import Any
 
 import numpy as np
 
 from synth.scene import Scene
 from synth.sensors.thermal import ThermalConfig, spreading_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Classifier
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
+from tactile_learn.validation.thermal import thermal_check
 
 __all__ = ["CalibratedFitEstimator"]
 
@@ -45,7 +44,7 @@ def _mid(bounds: tuple[float, float], log: bool = False) -> float:
     return math.sqrt(lo * hi) if log and lo > 0 else 0.5 * (lo + hi)
 
 
-class CalibratedFitEstimator(Estimator):
+class CalibratedFitEstimator(Classifier):
     """The scene's sensor model fitted per class to every input channel (see the module docstring)."""
 
     task = "thermal"
@@ -57,11 +56,14 @@ class CalibratedFitEstimator(Estimator):
         self.n_ramp = n_ramp
         self.chunk = chunk
 
-    def fit(self, X: np.ndarray, y: Any = None) -> CalibratedFitEstimator:
+    def prepare(self) -> CalibratedFitEstimator:
+        """Build every template's basis columns (once)."""
+        if "templates_" not in self.__dict__:
+            self.input_check_ = thermal_check(self.scene.sensor)
+            self.templates_ = self._templates()
         return self
 
-    @cached_property
-    def templates_(self) -> tuple[np.ndarray, np.ndarray]:
+    def _templates(self) -> tuple[np.ndarray, np.ndarray]:
         """Basis columns (M, S, 3W + 1, 4) of every template, indexed by the sample relative to the
         contact start (offset W), and each template's class (M,)."""
         cfg: ThermalConfig = self.scene.sensor
@@ -121,11 +123,13 @@ class CalibratedFitEstimator(Estimator):
                     owner.append(k)
         return np.stack(columns), np.array(owner)
 
-    def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks.thermal import ThermalTask
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
+    def predict_proba_checked(self, X: np.ndarray) -> np.ndarray:
+        self.prepared_state("templates_")  # an unprepared estimator fails before any work
         cfg: ThermalConfig = self.scene.sensor
-        x = ThermalTask().check_inputs(X, self.scene).astype(np.float64)
+        x = np.asarray(X, dtype=np.float64)
         if x.ndim == 2:
             x = x[:, None, :]
         k = len(cfg.class_names)
@@ -138,7 +142,7 @@ class CalibratedFitEstimator(Estimator):
         cfg: ThermalConfig = self.scene.sensor
         fs = cfg.readout.sampling_hz
         b, n_ch, w = x.shape
-        basis, owner = self.templates_
+        basis, owner = self.prepared_state("templates_")
         sigma = max(cfg.readout.noise_k, MODEL_ERROR_K)
         k = len(cfg.class_names)
         best = np.full((b, k), np.inf)

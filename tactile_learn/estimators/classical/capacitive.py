@@ -35,7 +35,7 @@ from synth.sensors.capacitive.layer import KPA_MM2_TO_N, tab_load_operator
 from synth.sensors.capacitive.sensor import load_noise_n
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.contact_shapes import threshold_mask
-from tactile_learn.validation import capacitive_input
+from tactile_learn.validation.capacitive import capacitive_input
 
 __all__ = ["BicubicEstimator", "DeconvolutionEstimator", "bicubic_matrix"]
 
@@ -104,6 +104,7 @@ class _ContactImageEstimator(Estimator):
         return self.predict_checked(capacitive_input(X, self.scene.sensor, "cell_load"))
 
     def predict_checked(self, loads: np.ndarray) -> np.ndarray:
+        self.prepared_state("upsampler_")  # an unprepared estimator fails before any work
         config: CapacitiveConfig = self.scene.sensor
         if not len(loads):
             return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
@@ -128,7 +129,7 @@ class BicubicEstimator(_ContactImageEstimator):
     ) -> None:
         super().__init__(scene, threshold, reach, contact_sigmas, floor_sigmas)
 
-    def fit(self, X: Any = None, y: Any = None) -> BicubicEstimator:
+    def prepare(self) -> BicubicEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
         return self
 
@@ -190,7 +191,7 @@ class DeconvolutionEstimator(_ContactImageEstimator):
         self.smoothness = smoothness
         self.iterations = iterations
 
-    def fit(self, X: Any = None, y: Any = None) -> DeconvolutionEstimator:
+    def prepare(self) -> DeconvolutionEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
         self.deconvolver_ = _deconvolver(self.scene.sensor, float(self.smoothness))
         return self

@@ -19,7 +19,6 @@ uses every channel.
 
 from __future__ import annotations
 
-from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -27,6 +26,7 @@ import numpy as np
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
+from tactile_learn.validation.strips import strips_check
 
 __all__ = ["IntersectionEstimator", "channel_loads", "strip_loads"]
 
@@ -57,17 +57,20 @@ class IntersectionEstimator(Estimator):
         self.rule = rule
         self.noise_floor = noise_floor
 
-    @cached_property
-    def sensor_(self) -> StripSensor:
-        return StripSensor(self.scene.sensor)
+    def prepare(self, sensor: StripSensor | None = None) -> IntersectionEstimator:
+        """Build the scene's strip sensor (its readout inverse and noise), once; ``sensor``: one
+        already built for the same scene (shared with another method)."""
+        if "sensor_" not in self.__dict__:
+            self.input_check_ = strips_check(self.scene.sensor)
+            self.sensor_ = sensor if sensor is not None else StripSensor(self.scene.sensor)
+        return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks import get_task
-
-        return self.predict_checked(get_task("strips").check_inputs(X, self.scene))
+        return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
-        rows, cols = strip_loads(self.sensor_, readings, self.noise_floor)
+        sensor: StripSensor = self.prepared_state("sensor_")
+        rows, cols = strip_loads(sensor, readings, self.noise_floor)
         if self.rule == "product":
             total = 0.5 * (rows.sum(axis=1) + cols.sum(axis=1))
             outer = rows[:, :, None] * cols[:, None, :]
@@ -77,4 +80,4 @@ class IntersectionEstimator(Estimator):
             share = np.sqrt(rows[:, :, None] * cols[:, None, :])
         else:
             raise ValueError(f"rule: {self.rule!r} is not 'product' or 'geometric'")
-        return self.sensor_.law.stress_from_gain(share).astype(np.float32)
+        return sensor.law.stress_from_gain(share).astype(np.float32)

@@ -24,40 +24,32 @@ Per curve (one pixel's window, degC), with the sensor's heat capacity ``C`` and 
    at all). Probabilities are the softmax of the scores; a curve without a detected onset is
    ``none``.
 
-:func:`calibrate_sensor` fits the sensor itself (``C``, ``G``, the contact radius; each touch's
-conductance, amplitude, onset and baseline) from touches of known materials with
-``scipy.optimize.least_squares``.
+The calibration of the sensor itself from touches of known materials (the same contact model) is
+:func:`tactile_learn.calibration.thermal_seed.calibrate_sensor`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cached_property
-from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from synth.errors import DataError
-from synth.materials import Material, get_material
+from synth.materials import Material
 from synth.scene import Scene
 from synth.sensors.thermal import ContactModel, ThermalConfig, spreading_conductance
-from tactile_learn.estimators.base import Estimator
+from tactile_learn.estimators.base import Classifier
 from tactile_learn.estimators.classical.curve_match import (
     CurveMatchEstimator,
-    detect_onset,
-    heated_window,
+    heated,
     merge_classes,
     nominal_sensor,
     softmax,
 )
+from tactile_learn.validation.thermal import thermal_check
 
-if TYPE_CHECKING:
-    from tactile_learn.thermal_recordings import Touch
-
-__all__ = ["CurveFit", "PhysicsFitEstimator", "calibrate_sensor", "fit_curves", "material_scores"]
+__all__ = ["CurveFit", "PhysicsFitEstimator", "contact_drop", "fit_curves", "material_gaussians", "material_scores"]
 
 _BOUNDS = np.array(
     [
@@ -72,7 +64,9 @@ _BOUNDS = np.array(
 _STEPS = np.array([0.0, 0.0, 1e-4, 1e-4, 1e-4, 0.0])  # forward-difference steps (log parameters)
 
 
-def _drop(t_rel: np.ndarray, c: np.ndarray, g: np.ndarray, e: np.ndarray, h: np.ndarray, ks: np.ndarray) -> np.ndarray:
+def contact_drop(
+    t_rel: np.ndarray, c: np.ndarray, g: np.ndarray, e: np.ndarray, h: np.ndarray, ks: np.ndarray
+) -> np.ndarray:
     """Normalised drop ``f = 1 - v/V0`` (B, W) at times ``t_rel`` (B, W) after onset (0 before);
     the model is evaluated only where ``t_rel > 0``."""
     model = ContactModel.create(c, g, h, e, ks, 1.0, 0.0)
@@ -135,7 +129,7 @@ def fit_curves(
     active = np.array([True, True, True, True, fit_spreading, True])
 
     def model(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        f = _drop(t[None, :] - th[:, 5:6], c, g, np.exp(th[:, 2]), np.exp(th[:, 3]), np.exp(th[:, 4]))
+        f = contact_drop(t[None, :] - th[:, 5:6], c, g, np.exp(th[:, 2]), np.exp(th[:, 3]), np.exp(th[:, 4]))
         return th[:, :1] - th[:, 1:2] * f, f
 
     def flat(
@@ -211,7 +205,7 @@ def _log_range(lo: float, hi: float) -> tuple[float, float]:
     return 0.5 * (math.log(lo) + math.log(hi)), 0.5 * (math.log(hi) - math.log(lo)) / math.sqrt(3.0)
 
 
-def _material_gaussians(materials: Sequence[Material]) -> np.ndarray:
+def material_gaussians(materials: Sequence[Material]) -> np.ndarray:
     """(K, 4): mean and s.d. of log e and log alpha of each material over its property spread."""
     rows = []
     for m in materials:
@@ -231,7 +225,7 @@ def material_scores(
     theta: np.ndarray, cov: np.ndarray, config: ThermalConfig, use_diffusivity: bool = True
 ) -> np.ndarray:
     """Log-scores (B, K) of every material for fitted parameters (see the module docstring)."""
-    gauss = _material_gaussians(config.material_list)
+    gauss = material_gaussians(config.material_list)
     le = theta[:, 2]
     var_e = cov[:, 2, 2]
     d_e = le[:, None] - gauss[None, :, 0]
@@ -252,7 +246,7 @@ def material_scores(
     return -0.5 * quad - 0.5 * np.log(det)
 
 
-class PhysicsFitEstimator(Estimator):
+class PhysicsFitEstimator(Classifier):
     """Least-squares fit of the contact model, then the nearest material (see the module docstring).
 
     ``heat_capacity`` / ``loss`` / ``heater``: the sensor's, per curve (arrays as long as the input)
@@ -281,9 +275,12 @@ class PhysicsFitEstimator(Estimator):
         self.use_diffusivity = use_diffusivity
         self.chunk = chunk
 
-    @cached_property
-    def matcher_(self) -> CurveMatchEstimator:
-        return CurveMatchEstimator(self.scene)
+    def prepare(self) -> PhysicsFitEstimator:
+        """Build the curve matcher that gives every fit its onset and initial values (once)."""
+        if "matcher_" not in self.__dict__:
+            self.input_check_ = thermal_check(self.scene.sensor)
+            self.matcher_ = CurveMatchEstimator(self.scene).prepare()
+        return self
 
     def _sensor(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Heat capacity, loss (B,) and the allowed V0 interval (B, 2) of every curve."""
@@ -303,15 +300,13 @@ class PhysicsFitEstimator(Estimator):
             excess_lo = excess_hi = q / g
         return c, g, np.stack([excess_lo - off_hi, excess_hi - off_lo], axis=1)
 
-    def fit(self, X: np.ndarray, y: Any = None) -> PhysicsFitEstimator:
-        return self
-
     def fit_batch(self, x: np.ndarray, c: np.ndarray, g: np.ndarray, v0_range: np.ndarray) -> CurveFit:
         """The fit of curves ``x`` (B, W) with sensor values ``c``, ``g`` (B,), ``V0`` in ``v0_range``."""
         cfg: ThermalConfig = self.scene.sensor
         fs = cfg.readout.sampling_hz
-        _, onset, best = self.matcher_.scores(x)
-        lib = self.matcher_.library_
+        matcher: CurveMatchEstimator = self.prepared_state("matcher_")
+        _, onset, best = matcher.scores(x)
+        lib = matcher.library_
         mats = cfg.material_list
         m = lib.material[best]
         e0 = np.array([mt.effusivity for mt in mats])[m]
@@ -323,7 +318,7 @@ class PhysicsFitEstimator(Estimator):
         # amplitude of the best template from the onset on (least squares, any sign)
         w = x.shape[1]
         tt = np.arange(w)[None, :] / fs - t_on[:, None]
-        f0 = _drop(tt, c, g, e0, h0, np.where(cfg.contact.spreading, ks0, 0.0))
+        f0 = contact_drop(tt, c, g, e0, h0, np.where(cfg.contact.spreading, ks0, 0.0))
         dev = onset.baseline[:, None] - x
         v0 = (dev * f0).sum(axis=1) / np.maximum((f0 * f0).sum(axis=1), 1e-12)  # |f|^2 > 0 after onset
         init = np.stack([onset.baseline, v0, np.log(e0), np.log(h0), np.log(ks0), t_on], axis=1)
@@ -333,8 +328,12 @@ class PhysicsFitEstimator(Estimator):
         )
         return CurveFit(theta, cov, chi2, onset.detected)
 
-    def predict(self, X: np.ndarray) -> np.ndarray:
-        x = heated_window(X, self.scene).astype(np.float64)
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        return self.predict_proba_checked(self.prepared_state("input_check_")(X))
+
+    def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
+        self.prepared_state("matcher_")  # an unprepared estimator fails before any work
+        x = heated(x).astype(np.float64)
         k = len(self.scene.sensor.material_list)
         c, g, v0_range = self._sensor(len(x))
         out = np.zeros((len(x), k + 1), dtype=np.float32)
@@ -347,142 +346,3 @@ class PhysicsFitEstimator(Estimator):
             scores[~fit.detected, -1] = 0.0
             out[sl] = softmax(scores)
         return merge_classes(out, self.scene.sensor)
-
-
-# -------------------------------------------------------------------------------------------------
-# calibration of the user's sensor
-
-
-def calibrate_sensor(
-    touches: Sequence[Touch], config: ThermalConfig, fit_s: float = 2.0
-) -> tuple[ThermalConfig, dict[str, Any]]:
-    """Fit the sensor's own parameters from touches of known materials.
-
-    Shared unknowns: heat capacity ``C``, loss ``G``, contact radius ``a``; per touch: baseline,
-    ``V0``, ``log H``, the onset and ``log e`` (a Gaussian prior: the material's nominal value and
-    property spread), over the first ``fit_s`` seconds of contact (a touch's
-    ``release_s`` info column, when given, shortens that). ``scipy.optimize.least_squares`` (trust
-    region, bounds) on the noise-weighted residuals. Also estimated: the sampling rate (median of
-    the records), the noise (baseline), the ADC step (smallest level spacing of the readings, 0 if
-    the readings look continuous). Returns the calibrated config and a summary.
-    """
-    from scipy.optimize import least_squares
-
-    from tactile_learn.thermal_recordings import resample
-
-    if not touches:
-        raise DataError("calibration needs at least one labelled touch")
-    fs = float(np.median([t.sampling_hz for t in touches]))
-    step = _adc_step(touches)
-    series = []
-    for touch in touches:
-        values, onset_samples = resample(touch, fs)
-        det = detect_onset(values[None, :], fs, step)
-        if onset_samples is None:
-            if not det.detected[0]:
-                raise DataError(f"{touch.file}: no contact found in the record (is the sensor heated?)")
-            onset_samples = float(det.index[0]) + 0.5
-        end = onset_samples + fit_s * fs
-        if touch.info.get("release_s"):
-            end = min(end, (float(touch.info["release_s"]) - touch.time_s[0]) * fs)
-        n = int(min(len(values), math.floor(end) + 1))
-        if n - onset_samples < 3:
-            raise DataError(f"{touch.file}: too few samples of contact to calibrate from")
-        mat = get_material(str(touch.material))
-        pre = values[: max(int(onset_samples) - 2, 0)]
-        # noise from the whole baseline when there is one (successive differences: drift-free)
-        noise = math.sqrt(float(np.mean(np.diff(pre) ** 2)) / 2.0) if len(pre) >= 10 else float(det.sigma[0])
-        series.append((values[:n], onset_samples / fs, mat, max(noise, 1e-3), float(det.baseline[0])))
-    c0, g0 = nominal_sensor(config)
-    r0 = math.sqrt(config.contact.radius_mm[0] * config.contact.radius_mm[1]) * 1e-3
-    h_mid = math.sqrt(config.contact.conductance_w_m2k[0] * config.contact.conductance_w_m2k[1])
-    spreading = config.contact.spreading
-    # parameter vector: log C, log G, log a, then per touch (b, V0, log H, t0, log e)
-    gauss = _material_gaussians([s[2] for s in series])
-    p0 = [math.log(c0), math.log(g0), math.log(r0)]
-    lo = [math.log(10.0), math.log(1e-3), math.log(1e-4)]
-    hi = [math.log(1e6), math.log(1e5), math.log(1.0)]
-    for (values, onset_s, _, _, base), (me, se, _, _) in zip(series, gauss, strict=True):
-        p0 += [base, max(base - float(values[-1]), 0.1), math.log(h_mid), onset_s, me]
-        lo += [-np.inf, -np.inf, math.log(10.0), onset_s - 2.0 / fs, me - 4 * se]
-        hi += [np.inf, np.inf, math.log(1e8), onset_s + 2.0 / fs, me + 4 * se]
-    sigma = np.array([max(s[3], 1e-3) for s in series])
-    prior_h = max(0.5 * math.log(config.contact.conductance_w_m2k[1] / config.contact.conductance_w_m2k[0]), 1.0)
-
-    def residuals(p: np.ndarray) -> np.ndarray:
-        c, g, a = math.exp(p[0]), math.exp(p[1]), math.exp(p[2])
-        out = []
-        for i, (values, _, mat, _, _) in enumerate(series):
-            b, v0, lh, t0, le = p[3 + 5 * i : 8 + 5 * i]
-            t = np.arange(len(values)) / fs - t0
-            e = math.exp(le)
-            # the object's conductivity follows its effusivity at the material's diffusivity
-            k = e * math.sqrt(mat.diffusivity_mm2_s * 1e-6)
-            ks = float(spreading_conductance(k, a)) if spreading else 0.0
-            f = _drop(
-                t[None, :], np.array([c]), np.array([g]), np.array([e]), np.array([math.exp(lh)]), np.array([ks])
-            )[0]
-            out.append((values - (b - v0 * f)) / sigma[i])
-            out.append(np.array([(lh - math.log(h_mid)) / (2 * prior_h)]))  # weak: H alone is poorly set
-            out.append(np.array([(le - gauss[i, 0]) / gauss[i, 1]]))
-        return np.concatenate(out)
-
-    fit = least_squares(residuals, np.array(p0), bounds=(np.array(lo), np.array(hi)), x_scale="jac", max_nfev=400)
-    p = fit.x
-    c_fit, g_fit, a_fit = (math.exp(v) for v in p[:3])
-    per = p[3:].reshape(-1, 5)
-    h_fit = np.exp(per[:, 2])
-    v0_fit = per[:, 1]
-    baseline = per[:, 0]
-    noise = float(np.median(sigma))
-    # the calibrated scene: the fitted sensor with a small spread, the user's readout
-    excess = float(np.median(v0_fit))  # objects near ambient on average: Q / G ~ V0
-    sc, cc, rc = config.sensor, config.contact, config.readout
-    heater = g_fit * max(excess, 0.5)
-    ambient = baseline - excess
-    sensor = dataclasses.replace(
-        sc,
-        heat_capacity_j_m2k=(round(c_fit * 0.97, 3), round(c_fit * 1.03, 3)),
-        loss_w_m2k=(round(g_fit * 0.92, 4), round(g_fit * 1.08, 4)),
-        heater_w_m2=(round(heater * 0.92, 3), round(heater * 1.08, 3)),
-        ambient_c=(round(float(ambient.min()) - 2.0, 2), round(float(ambient.max()) + 2.0, 2)),
-    )
-    h_lo = float(np.clip(h_fit.min() / 2.0, 10.0, 1e8))
-    h_hi = float(np.clip(max(h_fit.max() * 2.0, h_lo * 1.5), 10.0, 1e9))
-    a_mm = a_fit * 1e3
-    contact = dataclasses.replace(
-        cc,
-        conductance_w_m2k=(round(h_lo, 2), round(h_hi, 2)),
-        radius_mm=(round(max(a_mm / 2.0, 0.1), 3), round(min(a_mm * 2.0, 1000.0), 3)),
-    )
-    readout = dataclasses.replace(rc, sampling_hz=round(fs, 6), noise_k=round(noise, 5), adc_step_k=round(step, 6))
-    duration = max(readout.duration_s, config.window_s)
-    readout = dataclasses.replace(readout, duration_s=duration)
-    fitted = dataclasses.replace(config, sensor=sensor, contact=contact, readout=readout)
-    summary = {
-        "heat_capacity_j_m2k": c_fit,
-        "loss_w_m2k": g_fit,
-        "contact_radius_mm": a_mm,
-        "conductance_w_m2k": [float(h_fit.min()), float(np.median(h_fit)), float(h_fit.max())],
-        "v0_k": [float(v0_fit.min()), float(np.median(v0_fit)), float(v0_fit.max())],
-        "sampling_hz": fs,
-        "noise_k": noise,
-        "adc_step_k": step,
-        "rms_residual_sigma": float(np.sqrt(np.mean(fit.fun**2))),
-        "solver_evaluations": int(fit.nfev),
-    }
-    return fitted, summary
-
-
-def _adc_step(touches: Sequence[Touch]) -> float:
-    """The readings' level spacing: the smallest positive difference between sorted distinct values,
-    if most differences are near multiples of it; else 0 (continuous readings)."""
-    values = np.unique(np.concatenate([t.temperature_c for t in touches]))
-    gaps = np.diff(values)
-    gaps = gaps[gaps > 1e-9]
-    if len(gaps) < 10:
-        return 0.0
-    step = float(np.percentile(gaps, 5))
-    ratio = gaps / step  # step > 1e-9
-    on_grid = np.abs(ratio - np.round(ratio)) < 0.1
-    return round(step, 6) if on_grid.mean() > 0.9 else 0.0

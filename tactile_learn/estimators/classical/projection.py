@@ -28,7 +28,6 @@ rules end the iterations.
 
 from __future__ import annotations
 
-from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -37,6 +36,7 @@ from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.intersection import IntersectionEstimator, channel_loads
+from tactile_learn.validation.strips import strips_check
 
 __all__ = ["ProjectionEstimator"]
 
@@ -59,18 +59,22 @@ class ProjectionEstimator(Estimator):
         self.rel_tol = rel_tol
         self.noise_floor = noise_floor
 
-    @cached_property
-    def model_(self) -> dict[str, Any]:
-        sensor = StripSensor(self.scene.sensor)
-        ops = sensor.array.layer_cell_operators()
-        return {
-            "sensor": sensor,
-            "k": [op.T.astype(np.float32).copy() for op in ops],  # right-multiplied: (B, NM) @ (NM, NM)
-            "k_t": [op.astype(np.float32).copy() for op in ops],
-            "w": sensor.layout.flat_weights.astype(np.float32),  # (C, L*NM)
-            "noise": sensor.load_noise().astype(np.float64),
-            "start": IntersectionEstimator(self.scene, noise_floor=self.noise_floor),
-        }
+    def prepare(self, sensor: StripSensor | None = None) -> ProjectionEstimator:
+        """Build the strip sensor, its cell operators and the starting method, once; ``sensor``:
+        one already built for the same scene."""
+        if "model_" not in self.__dict__:
+            self.input_check_ = strips_check(self.scene.sensor)
+            sensor = sensor if sensor is not None else StripSensor(self.scene.sensor)
+            ops = sensor.array.layer_cell_operators()
+            self.model_: dict[str, Any] = {
+                "sensor": sensor,
+                "k": [op.T.astype(np.float32).copy() for op in ops],  # right-multiplied: (B, NM) @ (NM, NM)
+                "k_t": [op.astype(np.float32).copy() for op in ops],
+                "w": sensor.layout.flat_weights.astype(np.float32),  # (C, L*NM)
+                "noise": sensor.load_noise().astype(np.float64),
+                "start": IntersectionEstimator(self.scene, noise_floor=self.noise_floor).prepare(sensor),
+            }
+        return self
 
     def _loads(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Model channel loads (B, C) of cell pressures ``x`` (B, N*M) and the derivative of each
@@ -92,11 +96,14 @@ class ProjectionEstimator(Estimator):
         return sum(back[:, k * cells : (k + 1) * cells] @ kt for k, kt in enumerate(m["k_t"]))
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        m = self.model_
+        return self.predict_checked(self.prepared_state("input_check_")(X))
+
+    def predict_checked(self, readings: np.ndarray) -> np.ndarray:
+        m: dict[str, Any] = self.prepared_state("model_")
         sensor: StripSensor = m["sensor"]
-        start = m["start"].predict(X)  # validates X
+        start = m["start"].predict_checked(readings)
         b, n, mm = start.shape
-        measured = channel_loads(sensor, np.asarray(X, dtype=np.float32), self.noise_floor)
+        measured = channel_loads(sensor, readings, self.noise_floor)
         noise = m["noise"]
         x = start.reshape(b, n * mm).astype(np.float64)
         active = np.flatnonzero(x.max(axis=1) > 0)  # all-zero frames are already consistent

@@ -48,7 +48,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 from scipy import optimize
@@ -56,6 +56,8 @@ from scipy import optimize
 from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
+from tactile_learn.fsr_check import one_press_check, with_one_press
+from tactile_learn.validation.fsr import fsr_check
 
 __all__ = [
     "FittedTriangulationEstimator",
@@ -360,29 +362,30 @@ class TriangulationEstimator(Estimator):
         config: fsr.FsrConfig = self.scene.sensor
         return config.element.break_force_n if self.min_load_n is None else float(self.min_load_n)
 
-    def fit(self, X: np.ndarray | None = None, y: Any = None) -> TriangulationEstimator:
-        """Fit the load model to the scene's film (no data needed: the film's physics is known)."""
-        model = fit_load_model(self.scene.sensor, self.kernel)
-        if self.calibrate:
-            model = calibrate_force(self.scene.sensor, model, self._threshold())
-        self.model_ = model
-        self.simulator_ = fsr.FsrSimulator(self.scene.sensor, ("readings",), noise=False)  # readout inverse
+    def prepare(self) -> TriangulationEstimator:
+        """Fit the load model to the scene's film (no data needed: the film's physics is known),
+        and build the readout inverse and the one-press check, once."""
+        if "model_" not in self.__dict__:
+            model = fit_load_model(self.scene.sensor, self.kernel)
+            if self.calibrate:
+                model = calibrate_force(self.scene.sensor, model, self._threshold())
+            self.model_ = model
+            self.simulator_ = fsr.FsrSimulator(self.scene.sensor, ("readings",), noise=False)  # readout inverse
+            # the readout inverse builds its lookup table on first use: build it here, not in predict
+            self.simulator_.loads_from_readings(np.zeros((1, fsr.N_SENSORS), dtype=np.float32))
+            self.check_ = one_press_check(self.scene).prepare()
+            self.input_check_ = fsr_check(self.scene.sensor)
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks import get_task
-
-        return self.predict_checked(get_task("fsr").check_inputs(X, self.scene))
+        return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
-        from tactile_learn.tasks import get_task
-
-        if not hasattr(self, "model_"):
-            self.fit()
+        model: LoadModel = self.prepared_state("model_")
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
-        out, _ = triangulate(loads, config, self.model_, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return get_task("fsr").finish_prediction(readings, out.astype(np.float32), self.scene)
+        out, _ = triangulate(loads, config, model, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
+        return with_one_press(readings, out.astype(np.float32), self.scene, self.check_)
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):

@@ -15,6 +15,7 @@ from synth.scene import load_scene
 from tactile_learn.cli import main
 from tactile_learn.tasks import get_task
 from tactile_learn.training_sets import TrainingSet
+from tests.paths import REPO_ROOT
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +76,7 @@ def test_averaged_weights_of_two_runs(folders: Path, mixture_run: Path) -> None:
     from synth.errors import ModelError
     from tactile_learn.checkpoints import load_torch, load_weights
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    sys.path.insert(0, str(REPO_ROOT / "scripts"))
     import average_weights
 
     first = mixture_run

@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 from scipy import special
-from thermal_reference import numerical_excess
 
 from synth.config import from_dict
 from synth.materials import get_material
@@ -24,6 +23,7 @@ from synth.sensors.thermal import (
     spreading_conductance,
     touch_excess,
 )
+from tests.thermal_reference import numerical_excess
 
 T_CHECK = np.geomspace(0.01, 20.0, 80)
 T_LONG = np.concatenate([[0.0], np.geomspace(1e-6, 1e5, 300)])

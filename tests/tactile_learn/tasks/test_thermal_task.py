@@ -33,7 +33,7 @@ class TruthEstimator(Estimator):
         self.k = k
         self.calls: list[int] = []
 
-    def predict(self, X: np.ndarray) -> np.ndarray:
+    def predict_proba(self, X: np.ndarray) -> np.ndarray:
         self.calls.append(len(X))
         out = np.zeros((len(X), self.k + 1), np.float32)
         out[np.arange(len(X)), self.labels[: len(X)]] = 1.0
@@ -121,7 +121,7 @@ def test_classical_methods_beat_chance_on_clean_long_touches(method: str, floor:
     rows = first[data.truth["label"][first] < 3]
     x, _ = view(data.subset(rows), 2.0)
     est = TASK.classical_methods()[method](scene)
-    pred = est.predict(x)
+    pred = est.predict_proba(x)
     assert pred.shape == (len(x), 4) and np.allclose(pred.sum(axis=1), 1.0, atol=1e-5)
     assert (pred.argmax(axis=1) == data.truth["label"][rows]).mean() >= floor
 

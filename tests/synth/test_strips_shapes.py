@@ -12,6 +12,7 @@ from synth.sensors.strips import StripSimulator
 from synth.sensors.strips.config import allowed_intervals, draw_except
 from synth.stimuli import KINDS, ContactBatch, rasterize, window_cells
 from tests.conftest import tiny_strips_scene
+from tests.paths import REPO_ROOT
 
 #: parameter ranges whose footprints stay within 4.5 mm of the centre (the user-field forward only
 #: sees the array's own lattice)
@@ -182,10 +183,9 @@ def test_old_scenes_draw_and_store_what_they_did() -> None:
     """strips16 uses none of the new kinds: no new latent arrays, and its digest is unchanged (the
     shipped cards were written against it)."""
     import json
-    from pathlib import Path
 
     scene = load_scene("strips5")
     out = StripSimulator(scene).simulate(8, np.random.default_rng(0))
     assert "latent_tilt" not in out and "latent_detail" not in out
-    card = json.loads((Path(__file__).parent.parent / "models" / "strips5.json").read_text())
+    card = json.loads((REPO_ROOT / "models" / "strips5.json").read_text())
     assert card["scene_digest"] == scene.digest

@@ -13,7 +13,7 @@ from tactile_learn.contact_metrics import contact_metrics, separation
 from tactile_learn.estimators.classical.capacitive import BicubicEstimator, DeconvolutionEstimator, bicubic_matrix
 from tactile_learn.estimators.classical.contact_shapes import contact_shapes, moments
 from tests.capacitive_scenes import tiny_capacitive_scene
-from tests.test_capacitive_calibration import true_table
+from tests.tactile_learn.calibration.test_capacitive_calibration import true_table
 
 METHODS = (BicubicEstimator, DeconvolutionEstimator)
 

@@ -137,7 +137,7 @@ def test_simulator_outputs_are_finite_for_any_stimulus(scene: Scene, seed: int, 
 
 @cache
 def estimators() -> tuple[IntersectionEstimator, ProjectionEstimator]:
-    return IntersectionEstimator(scene5()), ProjectionEstimator(scene5())
+    return IntersectionEstimator(scene5()).prepare(), ProjectionEstimator(scene5()).prepare()
 
 
 @given(st.integers(0, 9), st.floats(0, 0.999))

@@ -18,8 +18,9 @@ from tactile_learn.fsr_check import JOINT_STARTS_MAX, one_press_check
 from tactile_learn.idle import IdleGate, idle_scene, measure_idle_floor
 from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
+from tests.paths import REPO_ROOT
 
-MODELS = Path(__file__).resolve().parent.parent / "models"
+MODELS = REPO_ROOT / "models"
 
 
 class CountingModel(OnnxEstimator):
@@ -61,7 +62,7 @@ def test_idle_frames_never_reach_the_network() -> None:
 
 def test_gated_results_equal_ungated_on_active_frames() -> None:
     frames, _ = mixed_stream(0.5, n=200)
-    model = OnnxEstimator(MODELS / "strips16.onnx")
+    model = OnnxEstimator(MODELS / "strips16.onnx").prepare()
     gated = FrameStream(model, gate=True)
     result = gated.predict(frames)  # one mixed batch: only its active frames go to the network
     active = gated.gate.active(frames)  # type: ignore[union-attr]

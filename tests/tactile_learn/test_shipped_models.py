@@ -12,8 +12,9 @@ from synth.dataset import generate
 from synth.scene import parse_scene
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks import get_task
+from tests.paths import REPO_ROOT
 
-MODELS = sorted((Path(__file__).resolve().parent.parent / "models").glob("*.onnx"))
+MODELS = sorted((REPO_ROOT / "models").glob("*.onnx"))
 FRESH_SEED = 424242
 #: per task: frames to simulate, and (metric, higher is better, allowed slack) checked against the card;
 #: the slack covers the sampling error of a small fresh set, not a loss of accuracy

@@ -99,7 +99,7 @@ def test_a_tiny_learned_model_trains_exports_and_runs(small: tuple[Path, Scene])
     assert result["epochs_run"] == 2 and np.isfinite(result["val_metrics"]["iou_mean"])
     card = export(root / "run", root / "models" / "tiny_cap.onnx", test=root / "test", command="pytest")
     assert card["parity"]["rel_err_b7"] < 1e-4 and card["model_bytes"] < 5e6
-    model = OnnxEstimator(root / "models" / "tiny_cap.onnx")
+    model = OnnxEstimator(root / "models" / "tiny_cap.onnx").prepare()
     loads = get_task("capacitive").load_eval_data(root / "test").inputs
     pred = model.predict(loads)
     assert pred.shape == (len(loads), 2, 32, 32) and ((pred[:, 1] >= 0) & (pred[:, 1] <= 1)).all()
@@ -108,7 +108,7 @@ def test_a_tiny_learned_model_trains_exports_and_runs(small: tuple[Path, Scene])
     # the model is for 8 x 8 arrays: another array size is refused by name
     other = tiny_capacitive_scene(rows=4, cols=3)
     with pytest.raises(Exception, match="shape"):
-        OnnxEstimator(root / "models" / "tiny_cap.onnx", scene=other).predict(np.zeros((1, 4, 3), np.float32))
+        OnnxEstimator(root / "models" / "tiny_cap.onnx", scene=other).prepare().predict(np.zeros((1, 4, 3), np.float32))
 
 
 def test_the_shipped_model_reads_single_frames_of_its_device(tmp_path: Path) -> None:

@@ -13,6 +13,7 @@ from synth.scene import Scene, load_scene
 from synth.sensors import fsr
 from tactile_learn.fsr_check import OnePressCheck
 from tactile_learn.tasks import get_task
+from tests.paths import REPO_ROOT
 
 BASE = load_scene("fsr6")
 
@@ -40,9 +41,8 @@ def test_plain_scenes_keep_their_stream_and_digest() -> None:
     out = simulate(BASE, 64, 1)
     assert "latent_n_presses" not in out
     import json
-    from pathlib import Path
 
-    card = json.loads((Path(__file__).parent.parent / "models" / "fsr.json").read_text())
+    card = json.loads((REPO_ROOT / "models" / "fsr.json").read_text())
     assert card["scene_digest"] == BASE.digest
 
 

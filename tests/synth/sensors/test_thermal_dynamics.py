@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from thermal_reference import reference_channel
 
 from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal import phi
 from synth.sensors.thermal.dynamics import ChannelModel, channel_response, channel_terms, phi_integral
+from tests.thermal_reference import reference_channel
 
 T = np.geomspace(0.02, 8.0, 60)
 

@@ -39,9 +39,10 @@ def test_interface(task: str, method: str) -> None:
     assert list(params) == init  # __init__ stores its parameters under their own names
     assert est.fit(x) is est
     pred = est.predict(x)
-    assert pred.dtype == np.float32 and len(pred) == len(x) and np.isfinite(pred).all()
+    assert pred.dtype == (np.int64 if est.is_classifier else np.float32)  # a classifier's labels
+    assert len(pred) == len(x) and np.isfinite(pred).all()
     assert np.array_equal(pred, est.predict(x))  # deterministic
-    again = type(est)(**params).predict(x)
+    again = type(est)(**params).prepare().predict(x)
     assert np.array_equal(pred, again)
 
 

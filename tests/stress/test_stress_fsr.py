@@ -9,12 +9,11 @@ import math
 import os
 from collections.abc import Callable
 from functools import cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -28,10 +27,11 @@ from tactile_learn.estimators.classical.triangulation import (
     triangulate,
 )
 from tactile_learn.runtime import OnnxEstimator
+from tests.paths import REPO_ROOT
 
 pytestmark = pytest.mark.stress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO_ROOT
 ONNX_MODELS = sorted(p.name for p in (ROOT / "models").glob("fsr*.onnx"))
 #: a contact rotated by 120 degrees about the film's centre: sensor i reads what sensor PERM[i]
 #: read before (S0 -> S1 -> S2 -> S0 at the corners, S3 -> S5 -> S4 -> S3 at the midpoints)
@@ -189,7 +189,7 @@ METHODS = [*CLASSICAL, *(f"onnx:{name}" for name in ONNX_MODELS)]
 @cache
 def estimator(method: str) -> Estimator:
     if method.startswith("onnx:"):
-        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:"))
+        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:")).prepare()
     cls = {"triangulation": TriangulationEstimator, "triangulation_fit": FittedTriangulationEstimator}[method]
     return cls(scene()).fit()
 
@@ -323,6 +323,10 @@ def test_all_zero_and_baseline_frames_are_no_contact(method: str) -> None:
 
 
 @pytest.mark.parametrize("method", CLASSICAL)
+# Hypothesis seeds its floats with constants mined from every local module imported so far, so how
+# many of these draws are saturated or mirror-symmetric (and filtered) depends on what the suite
+# imported before: a filtering health check here fails or passes with the test order, not the code
+@settings(suppress_health_check=[HealthCheck.filter_too_much, HealthCheck.too_slow])
 @given(
     st.one_of(st.floats(0.0, 2 * HALF), st.floats(0.0, 300.0)),
     st.integers(0, 5),

@@ -40,10 +40,11 @@ from tactile_learn.estimators.classical.physics_fit import PhysicsFitEstimator
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_recordings import Touch, read_recordings, write_recordings
+from tests.paths import REPO_ROOT
 
 pytestmark = pytest.mark.stress
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = REPO_ROOT
 ONNX_MODELS = sorted(p.name for p in (ROOT / "models").glob("thermal*.onnx"))
 LIBRARY = resolve_materials(())
 
@@ -309,10 +310,10 @@ METHODS = ["curve_match", "physics_fit", "curve_match_18", *(f"onnx:{name}" for 
 @cache
 def estimator(method: str) -> Estimator:
     if method.startswith("onnx:"):
-        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:"))
+        return OnnxEstimator(ROOT / "models" / method.removeprefix("onnx:")).prepare()
     if method == "curve_match_18":
-        return CurveMatchEstimator(full())
-    return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}[method](wns())
+        return CurveMatchEstimator(full()).prepare()
+    return {"curve_match": CurveMatchEstimator, "physics_fit": PhysicsFitEstimator}[method](wns()).prepare()
 
 
 def scene_of(method: str) -> Scene:
@@ -373,7 +374,7 @@ def check_probabilities(p: np.ndarray, n: int, scene: Scene) -> None:
 def test_any_valid_window_gives_probabilities(method: str, data: st.DataObject) -> None:
     scene = scene_of(method)
     x = data.draw(windows(scene, st.sampled_from([0, 1, 2, 4])))
-    check_probabilities(estimator(method).predict(x), len(x), scene)
+    check_probabilities(estimator(method).predict_proba(x), len(x), scene)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -383,7 +384,7 @@ def test_dtype_layout_and_read_only_inputs_give_the_same_answer(method: str, dat
     scene = scene_of(method)
     x = data.draw(windows(scene, st.integers(1, 3)))
     est = estimator(method)
-    ref = est.predict(x.astype(np.float32))
+    ref = est.predict_proba(x.astype(np.float32))
     frozen = x.astype(np.float32)
     frozen.setflags(write=False)
     variants = {
@@ -396,7 +397,7 @@ def test_dtype_layout_and_read_only_inputs_give_the_same_answer(method: str, dat
         "list": x.astype(np.float32).tolist(),
     }
     for name, variant in variants.items():
-        assert np.array_equal(est.predict(variant), ref), name
+        assert np.array_equal(est.predict_proba(variant), ref), name
     assert not frozen.flags.writeable
 
 
@@ -413,14 +414,14 @@ def test_large_batches_and_chunks_answer_row_by_row(method: str) -> None:
     scene = scene_of(method)
     x = simulated_windows(scene.name, 12)  # 12 touches x 16 pixels
     est = estimator(method)
-    p = est.predict(x)
+    p = est.predict_proba(x)
     check_probabilities(p, len(x), scene)
     tol = 1e-6 if method.startswith("onnx:") else 0.0
-    assert np.allclose(est.predict(x[::-1])[::-1], p, rtol=0, atol=tol)
+    assert np.allclose(est.predict_proba(x[::-1])[::-1], p, rtol=0, atol=tol)
     for i in (0, len(x) // 2, len(x) - 1):
-        assert np.allclose(est.predict(x[i : i + 1])[0], p[i], rtol=0, atol=tol)
+        assert np.allclose(est.predict_proba(x[i : i + 1])[0], p[i], rtol=0, atol=tol)
     if method == "physics_fit":
-        chunked = PhysicsFitEstimator(scene, chunk=37).predict(x)
+        chunked = PhysicsFitEstimator(scene, chunk=37).prepare().predict_proba(x)
         assert np.array_equal(chunked, p)
 
 
@@ -435,7 +436,7 @@ def test_flat_windows_are_none(method: str, level: float, step: float, batch: in
     if step:
         value = min(max(round(value / step) * step, lo + step), hi - step)
     x = np.full((batch, scene.sensor.window_samples), value)
-    p = estimator(method).predict(x)
+    p = estimator(method).predict_proba(x)
     check_probabilities(p, batch, scene)
     assert (p[:, -1] == 1.0).all()
 
@@ -509,7 +510,7 @@ def test_a_library_template_is_classified_as_its_material(method: str, data: st.
     rss, _ = lib.match(y, n_valid)
     best = rss[0] <= rss[0].min() + 1e-9 * float((y * y).sum())  # RSS = |y|^2 - gain: round-off of |y|^2
     assert best[lib.material[pick]]
-    assert best[int(np.argmax(est.predict(x)[0]))]
+    assert best[int(np.argmax(est.predict_proba(x)[0]))]
 
 
 def nominal_v0(scene: Scene) -> tuple[float, float]:
@@ -547,7 +548,7 @@ def test_bad_input_is_refused_with_a_message_naming_it(
 ) -> None:
     scene = scene_of(method)
     with pytest.raises(InputError, match=message):
-        estimator(method).predict(make(scene.sensor.window_samples))
+        estimator(method).predict_proba(make(scene.sensor.window_samples))
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -560,7 +561,7 @@ def test_one_bad_value_in_a_valid_batch_names_its_frame(method: str, data: st.Da
     col = data.draw(st.integers(0, x.shape[1] - 1))
     x[row, col] = bad
     with pytest.raises(InputError, match=rf"(frame {row})|(NaN or inf.*frame {row})"):
-        estimator(method).predict(x)
+        estimator(method).predict_proba(x)
 
 
 # ---- recordings and evaluation files --------------------------------------------------------------

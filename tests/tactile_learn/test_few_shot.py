@@ -102,7 +102,7 @@ def test_few_shot_on_simulated_recordings_with_leave_one_out(tmp_path: Path) -> 
     from tactile_learn.tasks.thermal import ThermalTask
     from tactile_learn.thermal_adapt import write_scene
     from tactile_learn.thermal_recordings import write_recordings
-    from tests.test_thermal_real import robot_scene, robot_touches
+    from tests.tactile_learn.test_thermal_real import robot_scene, robot_touches
 
     scene = robot_scene()
     heated = dataclasses.replace(scene, sensor=replace(scene.sensor, "channels", ["heated"]))  # type: ignore[arg-type]

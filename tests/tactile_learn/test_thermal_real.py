@@ -283,9 +283,9 @@ def test_adapt_end_to_end_writes_a_model_with_its_calibration(tmp_path: Path) ->
     assert set(card["metrics"]["labelled_touches"]["values"]["accuracy_by_duration"]) >= {"1.0", "2.0"}
     assert isinstance(card["warnings"], list)
     assert load_scene(out / "sensor.toml").sensor.channels == ("heated",)
-    model = OnnxEstimator(out / "model.onnx")
+    model = OnnxEstimator(out / "model.onnx").prepare()
     data = TASK.load_eval_data(tmp_path / "rec", model.card_scene_)
-    assert model.predict(data.inputs).shape == (6, 3)  # metal, wood, none
+    assert model.predict_proba(data.inputs).shape == (6, 3)  # metal, wood, none
     # the output folder is never overwritten
     assert main([*args, "--channels", "all"]) == 2
 

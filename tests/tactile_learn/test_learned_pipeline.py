@@ -123,16 +123,16 @@ def test_export_parity_card_and_runtime(model: Path, run: Path, data: Path) -> N
     net = get_task("strips").build_net(saved["size"], scene, saved["stats"])
     net.load_state_dict(saved["state_dict"])
     readings = np.load(data / "test" / "shard-00000.readings.npy")
-    expected = TorchEstimator(net, "strips", scene).predict(readings)
+    expected = TorchEstimator(net, "strips", scene).prepare().predict(readings)
     for threads in (1, 2):
-        got = OnnxEstimator(model, threads=threads).predict(readings)
+        got = OnnxEstimator(model, threads=threads).prepare().predict(readings)
         assert np.abs(got - expected).max() <= PARITY_TOL * (expected.max() - expected.min())
     for batch in (0, 1, 7):
-        assert OnnxEstimator(model).predict(readings[:batch]).shape == (batch, 5, 5)
+        assert OnnxEstimator(model).prepare().predict(readings[:batch]).shape == (batch, 5, 5)
 
 
 def test_runtime_refuses_bad_models_and_inputs(model: Path, tmp_path: Path) -> None:
-    est = OnnxEstimator(model)
+    est = OnnxEstimator(model).prepare()
     with pytest.raises(InputError, match="expected shape"):
         est.predict(np.full((2, 32), 0.3, np.float32))
     with pytest.raises(InputError, match="NaN"):
@@ -153,7 +153,7 @@ def test_runtime_refuses_bad_models_and_inputs(model: Path, tmp_path: Path) -> N
             text = card_data if isinstance(card_data, str) else json.dumps(card_data)
             path.with_suffix(".json").write_text(text)
         with pytest.raises(ModelError, match=fragment):
-            OnnxEstimator(path).predict(np.full((1, 10), 0.3, np.float32))
+            OnnxEstimator(path).prepare().predict(np.full((1, 10), 0.3, np.float32))
     # a corrupt graph whose card was rewritten to match it: onnxruntime's own refusal, named
     garbage = tmp_path / "garbage.onnx"
     garbage.write_bytes(b"\x08\x07" + os.urandom(200))
@@ -161,7 +161,7 @@ def test_runtime_refuses_bad_models_and_inputs(model: Path, tmp_path: Path) -> N
 
     garbage.with_suffix(".json").write_text(json.dumps({**card, "model_sha256": sha256_file(garbage)}))
     with pytest.raises(ModelError, match="cannot load"):
-        OnnxEstimator(garbage).predict(np.full((1, 10), 0.3, np.float32))
+        OnnxEstimator(garbage).prepare().predict(np.full((1, 10), 0.3, np.float32))
 
 
 def test_runtime_and_eval_work_without_torch(model: Path, data: Path) -> None:
@@ -172,7 +172,7 @@ sys.modules["torch"] = None  # any 'import torch' now raises ImportError
 import numpy as np
 from tactile_learn.runtime import OnnxEstimator
 readings = np.load({str(data / "test" / "shard-00000.readings.npy")!r})
-print(OnnxEstimator({str(model)!r}).predict(readings[:3]).shape)
+print(OnnxEstimator({str(model)!r}).prepare().predict(readings[:3]).shape)
 from tactile_learn.cli import main
 code = main(["eval", "--task", "strips", "--data", {str(data / "test")!r}, "--method", {str(model)!r}])
 assert "torch" not in [m for m in sys.modules if sys.modules[m] is not None], "torch was imported"
@@ -197,19 +197,19 @@ def test_exported_checks_match_numpy_and_the_flag_falls_back(model: Path, data: 
     assert card["consistency"]["quantile"] == 0.99
     readings = np.load(data / "test" / "shard-00000.readings.npy")[:200]
     scene = load_scene("strips5")
-    out = OnnxEstimator(model).predict_all(readings)
+    out = OnnxEstimator(model).prepare().predict_all(readings)
     consistency = StripConsistency(scene)
     numpy_residual = consistency.residual(readings, out["pressure"])["residual_sigma"]
     assert np.allclose(out["residual"], numpy_residual, rtol=1e-3, atol=1e-3)
     assert np.allclose(out["balance"], consistency.balance(readings), rtol=1e-3, atol=1e-5)
     # in-distribution frames: about 2 % flagged (each threshold is a 99th percentile of validation)
-    checked = CheckedStripModel(model)
+    checked = CheckedStripModel(model).prepare()
     result = checked.check(readings)
     assert result["flagged"].mean() < 0.08
     # thresholds below every value flag everything: the answer is then the intersection rule's
-    strict = CheckedStripModel(model, thresholds={"residual": -1.0, "balance": -1.0}).check(readings)
+    strict = CheckedStripModel(model, thresholds={"residual": -1.0, "balance": -1.0}).prepare().check(readings)
     assert strict["flagged"].all()
-    assert np.array_equal(strict["pressure"], IntersectionEstimator(scene).predict(readings))
+    assert np.array_equal(strict["pressure"], IntersectionEstimator(scene).prepare().predict(readings))
     assert np.array_equal(strict["learned"], result["learned"])
     # frames this sensor cannot produce: one strip reads a heavy load no other strip confirms
     odd = readings[:50].copy()

@@ -65,7 +65,7 @@ def test_known_loads_recovered_on_noise_free_readings() -> None:
     force = rng.uniform(3.0, 10.0, 300)
     sim = fsr.make_simulator(scene)
     readings = sim.forward(xy, force, 0.5, quantise=False).astype(np.float32)
-    for estimator in (TriangulationEstimator(scene), FittedTriangulationEstimator(scene)):
+    for estimator in (TriangulationEstimator(scene).fit(), FittedTriangulationEstimator(scene).fit()):
         pred = estimator.predict(readings)
         err = np.linalg.norm(pred[:, :2] - xy, axis=1)
         assert np.median(err) < 0.05, estimator.name
@@ -82,8 +82,8 @@ def test_known_loads_on_the_paper_film_noise_free() -> None:
     xy = _points_inside(400, rng)
     force = np.exp(rng.uniform(np.log(2.0), np.log(10.0), 400))
     readings = fsr.make_simulator(scene).forward(xy, force, 4.0).astype(np.float32)
-    fitted = FittedTriangulationEstimator(scene).predict(readings)
-    half = TriangulationEstimator(scene).predict(readings)
+    fitted = FittedTriangulationEstimator(scene).prepare().predict(readings)
+    half = TriangulationEstimator(scene).prepare().predict(readings)
     assert np.median(np.linalg.norm(fitted[:, :2] - xy, axis=1)) < 0.5
     assert np.median(np.abs(fitted[:, 2] / force - 1)) < 0.05
     assert np.median(np.linalg.norm(half[:, :2] - xy, axis=1)) < 3.75
@@ -91,7 +91,7 @@ def test_known_loads_on_the_paper_film_noise_free() -> None:
 
 
 def test_no_contact_and_flags() -> None:
-    est = TriangulationEstimator(SCENE)
+    est = TriangulationEstimator(SCENE).fit()
     sim = fsr.make_simulator(SCENE)
     zeros = np.zeros((3, 6), dtype=np.float32)
     np.testing.assert_array_equal(est.predict(zeros), 0.0)
@@ -103,12 +103,12 @@ def test_no_contact_and_flags() -> None:
     # flagged; the half-space kernel (too sharp for this film) keeps the root inside the triangle,
     # the documented rule of the reference's closed form
     above = sim.forward(np.array([[0.0, 26.0], [0.0, 28.0]]), np.array([8.0, 8.0]), 4.0).astype(np.float32)
-    pred = FittedTriangulationEstimator(SCENE).predict(above)
+    pred = FittedTriangulationEstimator(SCENE).prepare().predict(above)
     assert np.all(pred[:, 3] == 1) and np.all(pred[:, 4] == 0)
     np.testing.assert_allclose(pred[:, 1], [26.0, 28.0], atol=5.0)
     # farther out only S0 feels it: located on S0, inside-or-outside undecided (0.5)
     lone = sim.forward(np.array([[0.0, 33.0]]), np.array([8.0]), 4.0).astype(np.float32)
-    assert FittedTriangulationEstimator(SCENE).predict(lone)[0, 4] == 0.5
+    assert FittedTriangulationEstimator(SCENE).prepare().predict(lone)[0, 4] == 0.5
     assert np.all(est.predict(above)[:, 3] == 1)
 
 
@@ -118,7 +118,7 @@ def test_degenerate_two_sensors_below_break_fall_back_to_the_vertex() -> None:
     force = np.array([1.0, 1.5, 2.0])
     readings = fsr.make_simulator(SCENE.with_noise(False)).forward(pos[[1, 0, 2]], force, 4.0)
     assert np.sum(readings > 10, axis=1).tolist() == [1, 1, 1]
-    for est in (TriangulationEstimator(SCENE), FittedTriangulationEstimator(SCENE)):
+    for est in (TriangulationEstimator(SCENE).fit(), FittedTriangulationEstimator(SCENE).fit()):
         pred = est.predict(readings.astype(np.float32))
         np.testing.assert_allclose(pred[:, :2], pos[[1, 0, 2]], atol=1e-5)
         np.testing.assert_allclose(pred[:, 2], force, rtol=0.05)
@@ -128,7 +128,7 @@ def test_degenerate_two_sensors_below_break_fall_back_to_the_vertex() -> None:
 @settings(max_examples=80, deadline=None)
 @given(readings=hnp.arrays(np.float32, (5, 6), elements=st.floats(0, 1022, width=32)))
 def test_any_valid_reading_gives_finite_output(readings: np.ndarray) -> None:
-    pred = TriangulationEstimator(SCENE).predict(readings)
+    pred = TriangulationEstimator(SCENE).prepare().predict(readings)
     assert pred.shape == (5, 6) and pred.dtype == np.float32
     assert set(np.unique(pred[:, 5])) <= {0.0, 0.5, 1.0}
     assert np.isfinite(pred).all()
@@ -149,7 +149,7 @@ def test_any_valid_reading_gives_finite_output(readings: np.ndarray) -> None:
 )
 def test_bad_inputs_are_refused(bad: np.ndarray, message: str) -> None:
     with pytest.raises(InputError, match=message):
-        TriangulationEstimator(SCENE).predict(bad)
+        TriangulationEstimator(SCENE).prepare().predict(bad)
 
 
 def test_held_out_films_land_near_the_paper() -> None:
@@ -164,7 +164,7 @@ def test_held_out_films_land_near_the_paper() -> None:
         config = replace(config, key, value)
     data = fsr.make_simulator(dataclasses.replace(SCENE, sensor=config)).simulate(3000, np.random.default_rng(123))
     metrics = fsr_metrics(
-        TriangulationEstimator(SCENE).predict(data["readings"]), data["xy_mm"], data["force_n"], config.layout
+        TriangulationEstimator(SCENE).prepare().predict(data["readings"]), data["xy_mm"], data["force_n"], config.layout
     )
     assert 2.5 / 1.5 <= metrics["loc_err_mm_median"] <= 2.5 * 1.5
     error = 1 - metrics["force_accuracy"]

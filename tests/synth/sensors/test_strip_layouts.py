@@ -157,7 +157,7 @@ def test_bad_layout_settings_and_readings_are_named() -> None:
         layout_scene({"strips.geometry.layout": "hexagonal"})
     scene = layout_scene(LAYOUTS[0])
     with pytest.raises(InputError, match="readings"):
-        ProjectionEstimator(scene).predict(np.full((2, 11), 0.3, np.float32))  # orthogonal readings
+        ProjectionEstimator(scene).prepare().predict(np.full((2, 11), 0.3, np.float32))  # orthogonal readings
 
 
 def test_a_diagonal_layer_pairs_two_identical_contacts() -> None:
@@ -166,7 +166,7 @@ def test_a_diagonal_layer_pairs_two_identical_contacts() -> None:
     ratios = {}
     for name, scene in (("orthogonal", twins), ("diagonal", load_scene("strips16_twins_diagonal"))):
         out = StripSimulator(scene).simulate(40, np.random.default_rng(11))
-        pred = ProjectionEstimator(scene).predict(out["readings"])
+        pred = ProjectionEstimator(scene).prepare().predict(out["readings"])
         extra = {k: v for k, v in out.items() if k.startswith("latent_")}
         ratios[name] = pairing(pred, extra, 2.5)["ghost_to_real_median"]
     assert ratios["orthogonal"] > 0.9  # as much on the ghosts as on the real crossings

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from tests.paths import REPO_ROOT
+
+ROOT = REPO_ROOT
 
 # Makes `import torch` fail as it does where torch is not installed (ModuleNotFoundError), without
 # touching sys.modules (scipy inspects sys.modules["torch"] when it is present).

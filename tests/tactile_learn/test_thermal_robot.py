@@ -20,8 +20,9 @@ from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import adapt_scene, calibrate_recordings
 from tactile_learn.thermal_recordings import select_recordings
+from tests.paths import REPO_ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = REPO_ROOT
 DATA = Path(os.environ.get("TACTILE_THERMAL_ROBOT") or ROOT.parent / "shared" / "data" / "thermal-robot")
 pytestmark = [
     pytest.mark.slow,
