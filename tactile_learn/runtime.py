@@ -34,6 +34,10 @@ __all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "card_path", "read_ca
 CARD_FORMAT = 1
 #: key of the JSON blob that export writes into the ONNX graph's metadata
 METADATA_KEY = "tactile_learn"
+#: onnxruntime graph optimisation levels a card may ask for (``card["graph_optimization"]``; default
+#: "all"). The NCHWc layout rewrite of "all" helps large convolutions and slows the strip networks'
+#: small ones at batch 1 (measured: scripts/strips_pareto.py, README), so their cards ask for "extended".
+GRAPH_OPTIMIZATION = ("basic", "extended", "all")
 
 
 def card_path(model_path: str | Path) -> Path:
@@ -172,8 +176,11 @@ class OnnxEstimator(Estimator):
         options.intra_op_num_threads = self.threads
         options.inter_op_num_threads = 1
         options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        options.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
         card = self.card_
+        level = card.get("graph_optimization", "all")
+        if level not in GRAPH_OPTIMIZATION:
+            raise ModelError(f"{self.path}: graph_optimization {level!r} is not one of {', '.join(GRAPH_OPTIMIZATION)}")
+        options.graph_optimization_level = getattr(ort.GraphOptimizationLevel, f"ORT_ENABLE_{level.upper()}")
         try:
             session = ort.InferenceSession(str(self.path), sess_options=options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own untyped errors for corrupt graphs

@@ -30,7 +30,7 @@ from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
-from tactile_learn.nets.strips_general import GeneralStripNet, StripForward, StripResidual
+from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
 __all__ = ["DeployedStripNet", "deploy"]
 
@@ -53,7 +53,7 @@ def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int]) -> nn.Con
 
 
 class _DeployedAxial(nn.Module):
-    """:class:`~tactile_learn.nets.strips._Axial` with its input added through its own weights
+    """:class:`~tactile_learn.nets.strip_blocks.AxialBlock` with its input added through its own weights
     (``W + I``: one node fewer). (Channels-last matrix products instead of the 1 x 1 convolutions
     were measured slower under onnxruntime.)"""
 
@@ -154,6 +154,9 @@ class DeployedStripNet(nn.Module):
             head.bias[1] *= 4.0
         self.head = head
         self.clip = (-20.0 + math.log(slope), 4.0 + math.log(slope))
+        self.slope = slope
+        self.law_base = net.law_base
+        self.p0, self.exponent = net.p0, net.exponent
         self.unit = net.pressure_scale / net.total_ref / 4.0
         self.forward_model = StripForward(scene)
         self.residual = StripResidual(scene)
@@ -173,7 +176,14 @@ class DeployedStripNet(nn.Module):
         physics = torch.stack([product, torch.minimum(rows.unsqueeze(2), cols.unsqueeze(1))], dim=1)
         x = torch.relu(terms[:, :h].unsqueeze(3) + terms[:, h:].unsqueeze(2) + self.physics(physics))
         head = self.head(self.blocks(x))
-        learned = torch.exp(head[:, 0].clamp(*self.clip)) * product + nn.functional.softplus(head[:, 1]) * self.unit
+        base = product  # the classical estimate / (slope * total): the linear base
+        if self.law_base:  # the law's inverse of the share (exponent 1: three nodes, no power)
+            share = (product * total.unsqueeze(2)).clamp(0.0, MAX_SHARE)
+            if self.exponent == 1.0:
+                base = product / (1.0 - share)
+            else:
+                base = law_inverse(share, self.p0, self.exponent) / (self.slope * total.unsqueeze(2))
+        learned = torch.exp(head[:, 0].clamp(*self.clip)) * base + nn.functional.softplus(head[:, 1]) * self.unit
         pressure = learned * total.unsqueeze(2)
         return (pressure, *self.residual(self.forward_model(pressure), loads))
 

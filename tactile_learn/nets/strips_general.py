@@ -3,7 +3,7 @@
 Built on the structure of the problem, cheap at batch 1:
 
 1. **Loads, then shape and magnitude apart.** The readout is inverted in-graph to each strip's
-   load (:class:`~tactile_learn.nets.strips.StripLoads`); the loads are divided by the frame's
+   load (:class:`~tactile_learn.nets.strip_blocks.StripLoads`); the loads are divided by the frame's
    total load ``T`` (plus a floor at the noise level, so an empty frame stays empty), and the
    network sees the *shape* of the profiles and ``log T`` separately. The output shape is scaled
    back by ``T``: a shape learned at 2 N is the same shape at 6 N, and only the piezoresistive
@@ -13,7 +13,7 @@ Built on the structure of the problem, cheap at batch 1:
    context (an MLP over all loads: which rows pair with which columns) + three physics channels:
    the outer-product image ``Lr_i Lc_j / T`` (the classical intersection estimate), ``min(Lr_i,
    Lc_j)`` (a crossing cannot carry more than both its strips) and the broadcast loads.
-3. **Axial mixing** (:class:`~tactile_learn.nets.strips._Axial`): each crossing meets the strongest
+3. **Axial mixing** (:class:`~tactile_learn.nets.strip_blocks.AxialBlock`): each crossing meets the strongest
    and mean features along its row and its column, where its ghost competitors sit.
 4. **One correction step through the forward model** (``correct``): the first map is pushed through
    the sensor's forward model (:class:`StripForward`, the same cover kernel and piezoresistive law as
@@ -34,12 +34,16 @@ from torch import nn
 
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
-from tactile_learn.nets.strips import StripLoads, _Axial, _encoder
+from tactile_learn.nets.strip_blocks import AxialBlock, StripLoads, strip_encoder
 
-__all__ = ["ARCH", "SIZES", "GeneralStripNet", "StripForward", "StripResidual"]
+__all__ = ["ARCH", "SIZES", "GeneralStripNet", "StripForward", "StripResidual", "law_inverse"]
 
 #: architecture number stored in the normalisation statistics (the first architecture has none)
 ARCH = 2
+#: the base map's largest crossing share (``Lr Lc / T`` as a fraction of a segment's conductance):
+#: the piezoresistive law's inverse diverges at 1 (one noisy frame of the classical rule reads
+#: 10^4 kPa there); at 0.9 it reads 9 p0 (900 kPa), above any pressure the training scenes make
+MAX_SHARE = 0.9
 #: size -> (strip encoder channels, crossing channels, context width, mixing blocks, correction step)
 SIZES: dict[str, tuple[int, int, int, int, bool]] = {
     "small": (24, 16, 192, 2, False),
@@ -50,6 +54,8 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
     # the fast one (issue 15's small model): half the crossing channels, one mixing block
     "tiny": (16, 8, 96, 1, False),
 }
+# the same networks on the classical estimate itself (the law's inverse, ``base`` below)
+SIZES |= {f"{name}_law": spec for name, spec in SIZES.items() if name != "corrected"}
 
 
 class StripForward(nn.Module):
@@ -129,8 +135,8 @@ class _Crossings(nn.Module):
 
     def __init__(self, enc: int, hidden: int, physics: int) -> None:
         super().__init__()
-        self.row_encoder = _encoder(enc)
-        self.col_encoder = _encoder(enc)
+        self.row_encoder = strip_encoder(enc)
+        self.col_encoder = strip_encoder(enc)
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.physics_proj = nn.Conv2d(physics, hidden, 1, bias=False) if physics else None
@@ -167,15 +173,19 @@ class GeneralStripNet(nn.Module):
             nn.ReLU(),
             nn.Linear(context, hidden),
         )
-        self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(blocks)])
+        self.blocks = nn.Sequential(*[AxialBlock(hidden) for _ in range(blocks)])
         self.head = _zero_conv(hidden, 2)
         self.p0 = float(scene.sensor.piezo.p0_kpa)
         self.exponent = float(scene.sensor.piezo.exponent)
+        # sizes ``*_law``: the base map is the classical intersection estimate itself (the
+        # piezoresistive law's inverse of the normalised product), so a head at zero answers what the
+        # classical rule answers; the others: the law's small-load slope (see _intersection)
+        self.law_base = size.endswith("_law")
         self.correct = correct
         if correct:
             self.forward_model = StripForward(scene)
             self.residual_crossings = _Crossings(enc // 2, hidden, physics=0)
-            self.refine = _Axial(hidden)
+            self.refine = AxialBlock(hidden)
             self.refine_head = _zero_conv(hidden, 2)
 
     def _outputs(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
@@ -210,10 +220,14 @@ class GeneralStripNet(nn.Module):
         return final, first, loads
 
     def _intersection(self, rows: torch.Tensor, cols: torch.Tensor, total: torch.Tensor) -> torch.Tensor:
-        """The classical intersection estimate's linear part (kPa): the normalised outer product
-        ``Lr Lc / T`` at the law's small-load slope ``p0 / n`` (the inverse law itself diverges as a
-        crossing's share nears 1; its nonlinearity is left to the learned rescaling)."""
-        return (rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]) * (self.p0 / self.exponent)
+        """The classical intersection estimate (kPa) from the normalised product ``Lr Lc / T``:
+        through the piezoresistive law's inverse (sizes ``*_law``, shares clamped at
+        :data:`MAX_SHARE`), or at the law's small-load slope ``p0 / n`` (the law's nonlinearity is then
+        left to the learned rescaling). Measured on the ood suite: README, strips Pareto section."""
+        share = rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]
+        if self.law_base:
+            return law_inverse(share, self.p0, self.exponent)
+        return share * (self.p0 / self.exponent)
 
     @staticmethod
     def _map(head: torch.Tensor, classical: torch.Tensor, unit: torch.Tensor) -> torch.Tensor:
@@ -244,6 +258,16 @@ class GeneralStripNetWithResidual(nn.Module):
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         final, _, loads = self.net._outputs(readings)
         return (final, *self.residual(self.forward_model(final), loads))
+
+
+def law_inverse(share: torch.Tensor, p0: float, exponent: float) -> torch.Tensor:
+    """Stress (kPa) of a conductance share, the inverse of the piezoresistive law
+    ``f = 1 - (1 + s / p0)^-n`` (``synth``'s ``stress_from_gain``), share clamped to
+    [0, :data:`MAX_SHARE`]."""
+    share = share.clamp(0.0, MAX_SHARE)
+    if exponent == 1.0:
+        return p0 * share / (1.0 - share)  # exact for n = 1, no power node
+    return p0 * (torch.pow(1.0 - share, -1.0 / exponent) - 1.0)
 
 
 def general_stats(loads: np.ndarray, pressure: np.ndarray, load_noise: np.ndarray) -> dict[str, Any]:

@@ -29,7 +29,7 @@ from torch import nn
 
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
-from tactile_learn.nets.strips import SIZES, StripLoads, _Axial, _encoder, context_mlp
+from tactile_learn.nets.strip_blocks import SIZES, AxialBlock, StripLoads, context_mlp, strip_encoder
 
 __all__ = ["LayoutLoads", "LayoutStripNet"]
 
@@ -86,13 +86,13 @@ class LayoutStripNet(nn.Module):
         self.n_groups = len(layout.groups)
         self.register_buffer("spread", torch.from_numpy(spread.reshape(layout.n_channels, -1)))
         self.register_buffer("system", torch.from_numpy(cells.astype(np.float32)))  # (C, N*M)
-        self.row_encoder = _encoder(enc)
-        self.col_encoder = _encoder(enc)
+        self.row_encoder = strip_encoder(enc)
+        self.col_encoder = strip_encoder(enc)
         self.context = context_mlp(layout.n_channels, context, hidden)
         self.row_proj = nn.Conv1d(enc + 1, hidden, 1)
         self.col_proj = nn.Conv1d(enc + 1, hidden, 1, bias=False)
         self.cell_proj = nn.Conv2d(2 + self.n_groups, hidden, 1, bias=False)
-        self.blocks = nn.Sequential(*[_Axial(hidden) for _ in range(axial)])
+        self.blocks = nn.Sequential(*[AxialBlock(hidden) for _ in range(axial)])
         self.head = nn.Conv2d(hidden, 1, 1)
 
     def forward(self, readings: torch.Tensor) -> torch.Tensor:

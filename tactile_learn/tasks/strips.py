@@ -125,7 +125,7 @@ class StripsTask(Task):
     output_key = "pressure"
     truth_keys = ("pressure",)
     primary_metric = ("pearson_r_mean", True)
-    net_sizes = ("small", "tiny", "large", "corrected", "v1_small", "v1_large")
+    net_sizes = ("small", "tiny", "large", "corrected", "small_law", "tiny_law", "large_law", "v1_small", "v1_large")
     default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
@@ -145,20 +145,24 @@ class StripsTask(Task):
         }
 
     def card_extras(self, model: Estimator, val: str | None, scene: Scene) -> dict[str, Any]:
-        """``consistency``: the flag thresholds of a model with the check outputs, a high quantile
-        of each on the run's validation frames (in-distribution, never trained on)."""
+        """``graph_optimization`` (onnxruntime's level for these networks) and ``consistency``: the
+        flag thresholds of a model with the check outputs, a high quantile of each on the run's
+        validation frames (in-distribution, never trained on)."""
         from tactile_learn.provenance import portable_path
         from tactile_learn.runtime import OnnxEstimator
         from tactile_learn.strips_guard import THRESHOLD_QUANTILE, calibrate_threshold
 
+        # onnxruntime's NCHWc rewrite slows these small convolutions at batch 1 (tactile_learn.runtime)
+        runtime = {"graph_optimization": "extended"}
         if not isinstance(model, OnnxEstimator) or val is None:
-            return {}
+            return runtime
         if not set(CHECK_OUTPUTS) <= {o["name"] for o in model.card_["outputs"]}:
-            return {}
+            return runtime
         # frames the sensor cannot read (a saturated ADC) have no residual to calibrate on
         data, _ = readable_frames(self, self.load_eval_data(val).subset(slice(0, 20000)))
         outputs = model.predict_all(data.inputs)
         return {
+            **runtime,
             "consistency": {
                 "definition": "tactile_learn.strips_consistency: residual_sigma (cell-constant pressure, unit gains) "
                 "and balance",
@@ -170,7 +174,7 @@ class StripsTask(Task):
                     **{f"{k}_median": float(np.median(outputs[k])) for k in CHECK_OUTPUTS},
                 },
                 "fallback": "intersection",
-            }
+            },
         }
 
     def same_sensor(self, a: Scene, b: Scene) -> bool:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Literal
 
 import numpy as np
@@ -219,7 +220,7 @@ class StripsConfig:
 
     def wire_count(self) -> int:
         """Signal wires to the readout: one per reading (a strip end, a tap's section)."""
-        return StripLayout(self.geometry).n_channels
+        return _wire_count(self.geometry)
 
     def __post_init__(self) -> None:
         g = self.geometry
@@ -228,3 +229,10 @@ class StripsConfig:
                 f"stimuli.margin_mm: {self.stimuli.margin_mm} mm leaves no room for contacts on a "
                 f"{g.n_rows * g.pitch_mm} x {g.n_cols * g.pitch_mm} mm array"
             )
+
+
+@lru_cache(maxsize=256)
+def _wire_count(geometry: StripGeometry) -> int:
+    """Cached per geometry (frozen, hashable): every ``predict`` checks its input's width against it,
+    and building the layout's cell weights costs ~50 us, more than the classical estimate itself."""
+    return StripLayout(geometry).n_channels
