@@ -56,7 +56,7 @@ def test_new_networks_start_from_the_classical_estimate(frames: dict[str, np.nda
     """With the head at zero (as built) the law base answers what the intersection rule answers;
     the linear base of the models trained before does not, where crossings carry large shares."""
     readings = frames["readings"].astype(np.float32)
-    classical = IntersectionEstimator(load_scene("strips5"), noise_floor=0.0).predict(readings)
+    classical = IntersectionEstimator(load_scene("strips5"), noise_floor=0.0).prepare().predict(readings)
     with torch.inference_mode():
         law = _net(frames, "small_law")(torch.from_numpy(readings)).numpy()
         linear = _net(frames, "small")(torch.from_numpy(readings)).numpy()
@@ -92,8 +92,8 @@ def test_the_card_chooses_onnxruntimes_optimisation_level(tmp_path: Path) -> Non
     maps = {}
     for level in ("basic", "all"):
         path.with_suffix(".json").write_text(json.dumps({**card, "graph_optimization": level}))
-        maps[level] = OnnxEstimator(path).predict(readings)
+        maps[level] = OnnxEstimator(path).prepare().predict(readings)
     np.testing.assert_allclose(maps["basic"], maps["all"], rtol=1e-4, atol=1e-3)
     path.with_suffix(".json").write_text(json.dumps({**card, "graph_optimization": "fastest"}))
     with pytest.raises(ModelError, match="graph_optimization 'fastest'"):
-        OnnxEstimator(path).predict(readings)
+        OnnxEstimator(path).prepare().predict(readings)
