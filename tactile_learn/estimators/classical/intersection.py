@@ -31,16 +31,24 @@ from tactile_learn.validation.strips import strips_check
 __all__ = ["IntersectionEstimator", "channel_loads", "strip_loads"]
 
 
-def channel_loads(sensor: StripSensor, readings: np.ndarray, noise_floor: float) -> np.ndarray:
-    """Every channel's load (B, C), float64, with loads under the noise floor zeroed."""
+def channel_loads(
+    sensor: StripSensor, readings: np.ndarray, noise_floor: float, floor: np.ndarray | None = None
+) -> np.ndarray:
+    """Every channel's load (B, C), float64, with loads under the noise floor zeroed; ``floor``: the
+    per-channel threshold ``noise_floor * sensor.load_noise()`` when the caller has it already (its
+    readout inversions cost more than a frame's arithmetic at batch 1)."""
     loads = sensor.invert_readings(readings)
-    return np.where(loads > noise_floor * sensor.load_noise()[None, :], loads, 0.0)
+    if floor is None:
+        floor = noise_floor * sensor.load_noise()
+    return np.where(loads > floor[None, :], loads, 0.0)
 
 
-def strip_loads(sensor: StripSensor, readings: np.ndarray, noise_floor: float) -> tuple[np.ndarray, np.ndarray]:
+def strip_loads(
+    sensor: StripSensor, readings: np.ndarray, noise_floor: float, floor: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Row and column loads (B, N), (B, M), float64, with loads under the noise floor zeroed (any
     layout: a two-ended strip's ends, a tapped strip's sections summed; diagonal strips left out)."""
-    loads = channel_loads(sensor, readings, noise_floor)
+    loads = channel_loads(sensor, readings, noise_floor, floor)
     if sensor.layout.orthogonal:
         return loads[:, : sensor.n_rows], loads[:, sensor.n_rows :]
     return sensor.layout.row_col_loads(loads)
@@ -63,6 +71,7 @@ class IntersectionEstimator(Estimator):
         if "sensor_" not in self.__dict__:
             self.input_check_ = strips_check(self.scene.sensor)
             self.sensor_ = sensor if sensor is not None else StripSensor(self.scene.sensor)
+            self.load_floor_ = self.noise_floor * self.sensor_.load_noise()  # per channel, (C,)
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
@@ -70,7 +79,7 @@ class IntersectionEstimator(Estimator):
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         sensor: StripSensor = self.prepared_state("sensor_")
-        rows, cols = strip_loads(sensor, readings, self.noise_floor)
+        rows, cols = strip_loads(sensor, readings, self.noise_floor, self.load_floor_)
         if self.rule == "product":
             total = 0.5 * (rows.sum(axis=1) + cols.sum(axis=1))
             outer = rows[:, :, None] * cols[:, None, :]
