@@ -189,27 +189,31 @@ def fit_curves(
     cost = (res**2).sum(axis=1)
     lam = np.full(b, 1e-2)
     eye = np.eye(6)
+    moved_any = True
     for _ in range(iterations):
-        jac = jacobian(theta, f, columns)
-        jtj = np.einsum("bki,bkj->bij", jac, jac)
-        jtr = np.einsum("bki,bk->bi", jac, res)
-        diag = np.einsum("bii->bi", jtj)
-        damp = jtj + lam[:, None, None] * (diag[:, :, None] * eye + 1e-9 * eye)
+        if moved_any:  # else every point, hence its normal equations, is the last iteration's
+            jac = jacobian(theta, f, columns)
+            jtj = np.einsum("bki,bkj->bij", jac, jac)
+            jtr = np.where(active, np.einsum("bki,bk->bi", jac, res), 0.0)[..., None]
+            diag = np.einsum("bii->bi", jtj)[:, :, None] * eye + 1e-9 * eye
+        damp = jtj + lam[:, None, None] * diag
         damp[:, ~active, :] = 0.0
         damp[:, :, ~active] = 0.0
         damp[:, ~active, ~active] = 1.0
-        step = -np.linalg.solve(damp, np.where(active, jtr, 0.0)[..., None])[..., 0]
+        step = -np.linalg.solve(damp, jtr)[..., 0]
         trial = np.clip(theta + step, lo, hi)
         pred_t, f_t, columns_t = evaluate(trial)
         res_t = residuals(trial, pred_t)
         cost_t = (res_t**2).sum(axis=1)
         better = np.isfinite(cost_t) & (cost_t < cost)
-        theta = np.where(better[:, None], trial, theta)
-        pred = np.where(better[:, None], pred_t, pred)
-        f = np.where(better[:, None], f_t, f)
-        columns = np.where(better[None, :, None], columns_t, columns)
-        res = np.where(better[:, None], res_t, res)
-        cost = np.where(better, cost_t, cost)
+        moved_any = bool(better.any())
+        if moved_any:
+            theta = np.where(better[:, None], trial, theta)
+            pred = np.where(better[:, None], pred_t, pred)
+            f = np.where(better[:, None], f_t, f)
+            columns = np.where(better[None, :, None], columns_t, columns)
+            res = np.where(better[:, None], res_t, res)
+            cost = np.where(better, cost_t, cost)
         lam = np.clip(np.where(better, lam / 3.0, lam * 4.0), 1e-9, 1e9)
     jac = jacobian(theta, f, columns)
     jtj = np.einsum("bki,bkj->bij", jac, jac)
