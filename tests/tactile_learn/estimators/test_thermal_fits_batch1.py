@@ -14,6 +14,7 @@ from synth.scene import Scene, load_scene
 from synth.sensors.thermal import make_simulator
 from tactile_learn.estimators.classical.calibrated_fit import MODEL_ERROR_K, STEP_S, CalibratedFitEstimator
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
+from tactile_learn.estimators.classical.physics_fit import _BOUNDS, PhysicsFitEstimator, _drop_fast, contact_drop
 from tactile_learn.tasks.thermal import ThermalTask
 from tests.tactile_learn.test_thermal_real import robot_scene
 
@@ -82,3 +83,35 @@ def test_calibrated_fit_refuses_bad_input_at_batch_1() -> None:
     x[0, 7] = np.nan
     with pytest.raises(InputError, match=r"finite|NaN"):
         est.predict_proba(x)
+
+
+def test_physics_fit_model_is_contact_drop_to_the_bit() -> None:
+    """The fit's own model evaluation (no checks, the series only where it is kept) gives
+    contact_drop's numbers over the fit's parameter box, before and after the onset."""
+    rng = np.random.default_rng(12)
+    n = 200
+    t_rel = np.arange(125)[None, :] / 50.0 - rng.uniform(-0.2, 2.4, (n, 1))
+    args = (
+        rng.uniform(200.0, 5000.0, n),  # C
+        rng.uniform(0.0, 400.0, n),  # G
+        np.exp(rng.uniform(*_BOUNDS[2], n)),  # e
+        np.exp(rng.uniform(*_BOUNDS[3], n)),  # H
+        np.exp(rng.uniform(*_BOUNDS[4], n)),  # k_s
+    )
+    fast = _drop_fast(t_rel, *args)
+    assert np.array_equal(fast, contact_drop(t_rel, *args))
+    assert (fast[t_rel <= 0] == 0).all() and np.isfinite(fast).all()
+
+
+def test_physics_fit_batch_1_gives_the_batch_answers() -> None:
+    scene = load_scene("thermal")
+    est = PhysicsFitEstimator(scene, chunk=7).prepare()
+    x = held_out_curves(scene, 2, seed=23)
+    batch = est.predict_proba(x)
+    singles = np.concatenate([est.predict_proba(x[i : i + 1]) for i in range(len(x))])
+    assert np.array_equal(singles, batch)  # each curve's iterations are its own, whatever the batch
+    assert np.allclose(batch.sum(axis=1), 1.0, atol=1e-5)
+    bad = x[:1].copy()
+    bad[0, 3] = np.inf
+    with pytest.raises(InputError, match=r"finite|NaN|inf"):
+        est.predict_proba(bad)
