@@ -181,21 +181,22 @@ def fit_curves(
             columns[i] = -(pred_all[1 + i] - pred) * inv_sigma / step
         return pred, f_all[0], columns
 
-    def flat(
-        v: np.ndarray, lo_: np.ndarray | float, hi_: np.ndarray | float, edge: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Flat-bottom prior residual and its derivative."""
-        below, above = v < lo_, v > hi_
-        r = (np.where(below, v - lo_, 0.0) + np.where(above, v - hi_, 0.0)) / edge
-        return r, np.where(below | above, 1.0 / edge, 0.0)
+    def flat(v: np.ndarray, lo_: np.ndarray | float, hi_: np.ndarray | float, edge: float) -> np.ndarray:
+        """Flat-bottom prior residual: ``(v - lo) / edge`` below, ``(v - hi) / edge`` above, 0 within."""
+        return (v - np.minimum(np.maximum(v, lo_), hi_)) / edge
+
+    def slope(v: np.ndarray, lo_: np.ndarray | float, hi_: np.ndarray | float, edge: float) -> np.ndarray:
+        """The flat prior's derivative."""
+        return np.where((v < lo_) | (v > hi_), 1.0 / edge, 0.0)
 
     def residuals(th: np.ndarray, pred: np.ndarray) -> np.ndarray:
-        data = (x - pred) * inv_sigma
-        prior = np.stack(
-            [flat(th[:, 1], v_lo, v_hi, edge_v)[0], flat(th[:, 3], lh_lo, lh_hi, edge_h)[0], (th[:, 4] - mu_k) / sd_k],
-            axis=1,
-        )
-        return np.concatenate([data, prior], axis=1)
+        res = np.empty((b, w + 3))
+        np.subtract(x, pred, out=res[:, :w])
+        res[:, :w] *= inv_sigma
+        res[:, w] = flat(th[:, 1], v_lo, v_hi, edge_v)
+        res[:, w + 1] = flat(th[:, 3], lh_lo, lh_hi, edge_h)
+        res[:, w + 2] = (th[:, 4] - mu_k) / sd_k
+        return res
 
     def jacobian(th: np.ndarray, f: np.ndarray, columns: np.ndarray) -> np.ndarray:
         jac = np.zeros((b, w + 3, 6))
@@ -203,8 +204,8 @@ def fit_curves(
         jac[:, :w, 1] = f * inv_sigma
         for i, j in enumerate(free):
             jac[:, :w, j] = columns[i]
-        jac[:, w, 1] = flat(th[:, 1], v_lo, v_hi, edge_v)[1]
-        jac[:, w + 1, 3] = flat(th[:, 3], lh_lo, lh_hi, edge_h)[1]
+        jac[:, w, 1] = slope(th[:, 1], v_lo, v_hi, edge_v)
+        jac[:, w + 1, 3] = slope(th[:, 3], lh_lo, lh_hi, edge_h)
         jac[:, w + 2, 4] = 1.0 / sd_k
         return jac
 
