@@ -14,7 +14,11 @@ Per curve (one pixel's window, degC), with the sensor's heat capacity ``C`` and 
    Q/G - offset_min]`` (0.25 K edges) and ``log H`` within the scene's conductance range (0.3);
    ``log k_s`` has a Gaussian prior (s.d. 1.5) around its initial value. Residuals are weighted by
    the curve's noise. (The same damped Gauss-Newton as ``scipy.optimize.least_squares``'s 'lm',
-   written batched so that thousands of curves fit in one vectorised loop.)
+   written batched so that thousands of curves fit in one vectorised loop.) Each iteration makes
+   one model call: the trial point and its forward-difference neighbours together (an accepted
+   trial's Jacobian is the next iteration's; after a rejected one the normal equations are kept),
+   so that at batch 1 numpy's per-call cost stays a few times the arithmetic, not 15x. Every
+   curve's iterations are its own: batch 1 gives the batch's answers to the bit.
 3. Classification: the fit's covariance gives ``log e`` and, through ``k_s = 4 k / (pi a)``,
    ``log alpha = 2 log(pi a k_s / (4 e))`` with the contact radius ``a`` unknown within the scene's
    range (its log-uniform variance is added). Each material is a Gaussian in (``log e``,
