@@ -32,6 +32,7 @@ import numpy as np
 
 from synth.scene import Scene
 from synth.sensors import fsr
+from tactile_learn.fsr_one_frame import OneFrameCheck
 
 __all__ = ["DEFAULT_THRESHOLD", "OnePressCheck", "one_press_check", "with_one_press"]
 
@@ -55,7 +56,10 @@ def with_one_press(
         return prediction
     out = np.empty((len(prediction), 6), dtype=np.float32)
     out[:, :-1] = prediction
-    if len(prediction):
+    if len(prediction) == 1:  # a single frame (a stream): the check on Python floats
+        one = (check or one_press_check(scene)).one_frame
+        out[0, -1] = one.p_one_press(inputs[0].tolist(), prediction[0].tolist())
+    elif len(prediction):
         out[:, -1] = (check or one_press_check(scene)).p_one_press(inputs, prediction)
     else:
         out[:, -1] = 0.0
@@ -96,7 +100,13 @@ class OnePressCheck:
         """Build the film model and load path now rather than on the first check."""
         self._model  # noqa: B018 - cached_property: built here, once
         self._path  # noqa: B018
+        self.one_frame  # noqa: B018
         return self
+
+    @cached_property
+    def one_frame(self) -> OneFrameCheck:
+        """The same check for a single frame on Python floats (:mod:`tactile_learn.fsr_one_frame`)."""
+        return OneFrameCheck(self)
 
     @cached_property
     def _model(self) -> tuple[fsr.FsrConfig, fsr.FsrLaw, fsr.Readout, float]:

@@ -1,0 +1,183 @@
+"""The one-press check (:mod:`tactile_learn.fsr_check`) on a single frame, in plain Python floats.
+
+At batch 1 the check's numpy arithmetic works on arrays of six (or eighteen) numbers, where every
+numpy call costs a microsecond or so of fixed overhead: the forward model alone is some twenty
+calls, and a Levenberg-Marquardt step three of them. A light press that needs refining then cost
+~1-2 ms per frame. :class:`OneFrameCheck` does the same arithmetic on Python floats with the
+film's tables as lists, built once per check: the same forward model (distance, Hertz radius,
+bilinear lookup of the load path, far-field point-load formula, the FSR law), the same
+finite-difference Jacobian, damping schedule, step limits and early stop, so the verdicts equal
+the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination instead of LAPACK).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from tactile_learn.fsr_check import OnePressCheck
+
+__all__ = ["OneFrameCheck", "expit"]
+
+_FD_STEP = (0.05, 0.05, 0.01)  # as fsr_check._FD_STEP: mm, mm, log N
+_STEP_LIMIT = (5.0, 5.0, 1.0)  # as fsr_check._STEP_LO/_STEP_HI: a step's largest move
+_FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force at 1e-3 (N)
+
+
+def expit(z: float) -> float:
+    """The logistic function as scipy computes it, ``1 / (1 + exp(-z))``; where ``exp(-z)``
+    overflows (``math.exp`` raises, numpy gives inf) the result is 0, as numpy's."""
+    try:
+        return 1.0 / (1.0 + math.exp(-z))
+    except OverflowError:
+        return 0.0
+
+
+def _solve3(a: list[list[float]], b: list[float]) -> list[float]:
+    """``a x = b`` for a 3 x 3 system, Gaussian elimination with partial pivoting; a singular
+    system (no information at all, e.g. every sensor below its break) gives no step."""
+    m = [[*row, v] for row, v in zip(a, b, strict=True)]
+    for col in range(3):
+        pivot = max(range(col, 3), key=lambda r: abs(m[r][col]))
+        if m[pivot][col] == 0.0:
+            return [0.0, 0.0, 0.0]
+        m[col], m[pivot] = m[pivot], m[col]
+        for r in range(col + 1, 3):
+            factor = m[r][col] / m[col][col]
+            if factor:
+                for c in range(col, 4):
+                    m[r][c] -= factor * m[col][c]
+    x = [0.0, 0.0, 0.0]
+    for r in (2, 1, 0):
+        x[r] = (m[r][3] - sum(m[r][c] * x[c] for c in range(r + 1, 3))) / m[r][r]
+    return x
+
+
+class OneFrameCheck:
+    """:class:`~tactile_learn.fsr_check.OnePressCheck`'s arithmetic for one frame (module docstring)."""
+
+    def __init__(self, check: OnePressCheck) -> None:
+        config, _, readout, tip = check._model
+        transfer, positions = check._path
+        self.threshold = float(check.threshold)
+        self.steps = int(check.steps)
+        self.floor_us = float(check.floor_us)
+        self.positions = [(float(x), float(y)) for x, y in positions]
+        lay, el = config.layout, config.element
+        e_star = lay.youngs_modulus_mpa / (1.0 - lay.poisson**2)  # as fsr.hertz_radius_mm
+        self.tip, self.e_star = float(tip), float(e_star)
+        dg, ag = transfer.d_grid, transfer.a_grid
+        self.d0, self.dd, self.d_top = float(dg[0]), float(dg[1] - dg[0]), float(len(dg) - 1.000001)
+        self.a0, self.da, self.a_top = float(ag[0]), float(ag[1] - ag[0]), float(len(ag) - 1.000001)
+        self.d_max = float(dg[-1])
+        self.table = transfer.table.tolist()
+        self.transfer = transfer
+        self.leak, self.per_n = float(el.leak_conductance_us), float(el.conductance_us_per_n)
+        self.break_n, self.width_n, self.sat_n = (
+            float(el.break_force_n),
+            float(el.break_width_n),
+            float(el.saturation_force_n),
+        )
+        levels = 2**readout.config.adc_bits
+        # the readout inverse of every code, by the batch path's own function (bit for bit)
+        self.code_conductance = readout.conductance_us(np.arange(levels, dtype=np.float64)).tolist()
+        self.readout = readout
+
+    # ---- the forward model ----------------------------------------------------------------------
+
+    def conductance(self, x: float, y: float, log_force: float) -> list[float]:
+        """Modelled conductances (uS) of the six sensors for a press at ``x, y`` with ``log_force``
+        (:meth:`OnePressCheck.conductance`)."""
+        force = math.exp(min(max(log_force, -10.0), 6.0))  # clipped: a diverging step cannot overflow
+        radius = (3.0 * force * self.tip / (4.0 * self.e_star)) ** (1.0 / 3.0)  # fsr.hertz_radius_mm
+        ai = min(max((radius - self.a0) / self.da, 0.0), self.a_top)
+        j0 = int(ai)
+        fj = ai - j0
+        table, leak, per_n, brk, width, sat = self.table, self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
+        out = []
+        for px, py in self.positions:
+            dx, dy = x - px, y - py
+            d = math.sqrt(dx * dx + dy * dy)
+            if d > self.d_max:  # beyond the table: the far-field point-load formula (as per_newton)
+                per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
+            else:
+                di = min(max((d - self.d0) / self.dd, 0.0), self.d_top)
+                i0 = int(di)
+                fi = di - i0
+                row, nxt = table[i0], table[i0 + 1]
+                per_newton = (
+                    row[j0] * (1 - fi) * (1 - fj)
+                    + nxt[j0] * fi * (1 - fj)
+                    + row[j0 + 1] * (1 - fi) * fj
+                    + nxt[j0 + 1] * fi * fj
+                )
+            load = max(per_newton * force, 0.0)
+            out.append(leak + per_n * (sat * math.tanh(load * expit((load - brk) / width) / sat)))
+        return out
+
+    def measured(self, codes: list[float]) -> list[float]:
+        """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
+        table = self.code_conductance
+        return [table[int(c)] if c.is_integer() else float(self.readout.conductance_us(np.array(c))) for c in codes]
+
+    def misfit(self, measured: list[float], model: list[float]) -> float:
+        """Relative RMS misfit (:meth:`OnePressCheck._misfit`)."""
+        n = len(measured)
+        err = math.sqrt(sum((m - b) ** 2 for m, b in zip(measured, model, strict=True)) / n)
+        return err / (math.sqrt(sum(m * m for m in measured) / n) + self.floor_us)
+
+    # ---- the check ------------------------------------------------------------------------------
+
+    def refined_misfit(self, measured: list[float], params: list[float], stop_below: float) -> float:
+        """:meth:`OnePressCheck._refined_misfit` for one frame."""
+        base = self.conductance(*params)
+        cost = sum((m - b) ** 2 for m, b in zip(measured, base, strict=True))
+        damping = 1e-3
+        misfit = self.misfit(measured, base)
+        for _ in range(self.steps):
+            if misfit <= stop_below:
+                break
+            jac = []  # columns: d conductance / d parameter, by forward differences
+            for k in range(3):
+                shifted = params[:]
+                shifted[k] += _FD_STEP[k]
+                jac.append([(s - b) / _FD_STEP[k] for s, b in zip(self.conductance(*shifted), base, strict=True)])
+            resid = [m - b for m, b in zip(measured, base, strict=True)]
+            jtj = [[sum(p * q for p, q in zip(jac[i], jac[j], strict=True)) for j in range(3)] for i in range(3)]
+            scale = jtj[0][0] + jtj[1][1] + jtj[2][2] + 1e-12
+            for i in range(3):
+                jtj[i][i] += damping * scale
+            delta = _solve3(jtj, [sum(p * r for p, r in zip(jac[i], resid, strict=True)) for i in range(3)])
+            candidate = [p + min(max(s, -lim), lim) for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)]
+            trial = self.conductance(*candidate)
+            trial_cost = sum((m - t) ** 2 for m, t in zip(measured, trial, strict=True))
+            if trial_cost < cost:
+                params, base, cost, damping = candidate, trial, trial_cost, damping / 3.0
+                misfit = self.misfit(measured, base)
+            else:
+                damping *= 5.0
+        return misfit
+
+    def p_one_press(self, codes: list[float], estimate: list[float]) -> float:
+        """The flag of one frame (:meth:`OnePressCheck.p_one_press`): ``codes`` its six nominal-film
+        readings, ``estimate`` its first five columns."""
+        if not estimate[3] > 0.5:
+            return 0.0
+        if not estimate[4] > 0.5:
+            return 0.5
+        measured = self.measured(codes)
+        # in float32, as the batch path takes the log of the float32 estimate
+        log_force = float(np.log(np.float32(max(estimate[2], _FORCE_FLOOR))))
+        start = [float(estimate[0]), float(estimate[1]), log_force]
+        if self.misfit(measured, self.conductance(*start)) <= self.threshold:
+            return 1.0
+        if self.refined_misfit(measured, start, self.threshold) <= self.threshold:
+            return 1.0
+        weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
+        total = sum(weights)
+        cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
+        cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
+        return 1.0 if self.refined_misfit(measured, [cx, cy, log_force], self.threshold) <= self.threshold else 0.0
