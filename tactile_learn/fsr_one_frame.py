@@ -13,6 +13,7 @@ the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination in
 from __future__ import annotations
 
 import math
+from operator import mul, sub
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -90,32 +91,38 @@ class OneFrameCheck:
 
     def conductance(self, x: float, y: float, log_force: float) -> list[float]:
         """Modelled conductances (uS) of the six sensors for a press at ``x, y`` with ``log_force``
-        (:meth:`OnePressCheck.conductance`)."""
-        force = math.exp(min(max(log_force, -10.0), 6.0))  # clipped: a diverging step cannot overflow
+        (:meth:`OnePressCheck.conductance`; the same operations in the same order, written out
+        with local names: this is the check's inner loop)."""
+        exp, tanh = math.exp, math.tanh
+        force = exp(-10.0 if log_force < -10.0 else 6.0 if log_force > 6.0 else log_force)  # as the batch clip
         radius = (3.0 * force * self.tip / (4.0 * self.e_star)) ** (1.0 / 3.0)  # fsr.hertz_radius_mm
-        ai = min(max((radius - self.a0) / self.da, 0.0), self.a_top)
+        ai = (radius - self.a0) / self.da
+        ai = 0.0 if ai < 0.0 else self.a_top if ai > self.a_top else ai
         j0 = int(ai)
         fj = ai - j0
-        table, leak, per_n, brk, width, sat = self.table, self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
+        j1, gj = j0 + 1, 1 - fj
+        table, d0, dd, d_top, d_max = self.table, self.d0, self.dd, self.d_top, self.d_max
+        leak, per_n, brk, width, sat = self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
         out = []
         for px, py in self.positions:
             dx, dy = x - px, y - py
             d = math.sqrt(dx * dx + dy * dy)
-            if d > self.d_max:  # beyond the table: the far-field point-load formula (as per_newton)
+            if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
             else:
-                di = min(max((d - self.d0) / self.dd, 0.0), self.d_top)
+                di = (d - d0) / dd
+                di = 0.0 if di < 0.0 else d_top if di > d_top else di
                 i0 = int(di)
                 fi = di - i0
+                gi = 1 - fi
                 row, nxt = table[i0], table[i0 + 1]
-                per_newton = (
-                    row[j0] * (1 - fi) * (1 - fj)
-                    + nxt[j0] * fi * (1 - fj)
-                    + row[j0 + 1] * (1 - fi) * fj
-                    + nxt[j0 + 1] * fi * fj
-                )
-            load = max(per_newton * force, 0.0)
-            out.append(leak + per_n * (sat * math.tanh(load * expit((load - brk) / width) / sat)))
+                per_newton = row[j0] * gi * gj + nxt[j0] * fi * gj + row[j1] * gi * fj + nxt[j1] * fi * fj
+            load = per_newton * force
+            if load < 0.0:
+                load = 0.0
+            z = (load - brk) / width
+            gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+            out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
     def measured(self, codes: list[float]) -> list[float]:
@@ -123,47 +130,63 @@ class OneFrameCheck:
         table = self.code_conductance
         return [table[int(c)] if c.is_integer() else float(self.readout.conductance_us(np.array(c))) for c in codes]
 
+    def _scale(self, measured: list[float]) -> float:
+        """The misfit's denominator: RMS measured conductance plus the floor."""
+        return math.sqrt(sum(map(mul, measured, measured)) / len(measured)) + self.floor_us
+
+    @staticmethod
+    def _cost(measured: list[float], model: list[float]) -> float:
+        """Summed squared conductance misfit (the batch path's ``cost``)."""
+        resid = list(map(sub, measured, model))
+        return sum(map(mul, resid, resid))
+
     def misfit(self, measured: list[float], model: list[float]) -> float:
         """Relative RMS misfit (:meth:`OnePressCheck._misfit`)."""
-        n = len(measured)
-        err = math.sqrt(sum((m - b) ** 2 for m, b in zip(measured, model, strict=True)) / n)
-        return err / (math.sqrt(sum(m * m for m in measured) / n) + self.floor_us)
+        return math.sqrt(self._cost(measured, model) / len(measured)) / self._scale(measured)
 
     # ---- the check ------------------------------------------------------------------------------
 
-    def refined_misfit(self, measured: list[float], params: list[float], stop_below: float) -> float:
-        """:meth:`OnePressCheck._refined_misfit` for one frame."""
-        base = self.conductance(*params)
-        cost = sum((m - b) ** 2 for m, b in zip(measured, base, strict=True))
+    def refined_misfit(
+        self, measured: list[float], params: list[float], stop_below: float, base: list[float] | None = None
+    ) -> float:
+        """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
+        when the caller has it)."""
+        conductance, n, scale_m = self.conductance, len(measured), self._scale(measured)
+        if base is None:
+            base = conductance(*params)
+        cost = self._cost(measured, base)
         damping = 1e-3
-        misfit = self.misfit(measured, base)
         for _ in range(self.steps):
-            if misfit <= stop_below:
+            if math.sqrt(cost / n) / scale_m <= stop_below:
                 break
-            jac = []  # columns: d conductance / d parameter, by forward differences
-            for k in range(3):
-                shifted = params[:]
-                shifted[k] += _FD_STEP[k]
-                jac.append([(s - b) / _FD_STEP[k] for s, b in zip(self.conductance(*shifted), base, strict=True)])
-            resid = [m - b for m, b in zip(measured, base, strict=True)]
-            jtj = [[sum(p * q for p, q in zip(jac[i], jac[j], strict=True)) for j in range(3)] for i in range(3)]
-            scale = jtj[0][0] + jtj[1][1] + jtj[2][2] + 1e-12
-            for i in range(3):
-                jtj[i][i] += damping * scale
-            delta = _solve3(jtj, [sum(p * r for p, r in zip(jac[i], resid, strict=True)) for i in range(3)])
-            candidate = [p + min(max(s, -lim), lim) for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)]
-            trial = self.conductance(*candidate)
-            trial_cost = sum((m - t) ** 2 for m, t in zip(measured, trial, strict=True))
+            # Jacobian columns: d conductance / d parameter, by forward differences
+            x, y, f = params
+            j0 = [(s - b) / _FD_STEP[0] for s, b in zip(conductance(x + _FD_STEP[0], y, f), base, strict=True)]
+            j1 = [(s - b) / _FD_STEP[1] for s, b in zip(conductance(x, y + _FD_STEP[1], f), base, strict=True)]
+            j2 = [(s - b) / _FD_STEP[2] for s, b in zip(conductance(x, y, f + _FD_STEP[2]), base, strict=True)]
+            resid = list(map(sub, measured, base))
+            a00, a11, a22 = sum(map(mul, j0, j0)), sum(map(mul, j1, j1)), sum(map(mul, j2, j2))
+            a01, a02, a12 = sum(map(mul, j0, j1)), sum(map(mul, j0, j2)), sum(map(mul, j1, j2))
+            ridge = damping * (a00 + a11 + a22 + 1e-12)
+            delta = _solve3(
+                [[a00 + ridge, a01, a02], [a01, a11 + ridge, a12], [a02, a12, a22 + ridge]],
+                [sum(map(mul, j0, resid)), sum(map(mul, j1, resid)), sum(map(mul, j2, resid))],
+            )
+            candidate = [
+                p + (-lim if s < -lim else lim if s > lim else s)
+                for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)
+            ]
+            trial = conductance(*candidate)
+            trial_cost = self._cost(measured, trial)
             if trial_cost < cost:
                 params, base, cost, damping = candidate, trial, trial_cost, damping / 3.0
-                misfit = self.misfit(measured, base)
             else:
                 damping *= 5.0
-        return misfit
+        return math.sqrt(cost / n) / scale_m
 
     def p_one_press(self, codes: list[float], estimate: list[float]) -> float:
         """The flag of one frame (:meth:`OnePressCheck.p_one_press`): ``codes`` its six nominal-film
-        readings, ``estimate`` its first five columns."""
+        readings, ``estimate`` its first five columns (cheapest first, as the batch path)."""
         if not estimate[3] > 0.5:
             return 0.0
         if not estimate[4] > 0.5:
@@ -172,9 +195,10 @@ class OneFrameCheck:
         # in float32, as the batch path takes the log of the float32 estimate
         log_force = float(np.log(np.float32(max(estimate[2], _FORCE_FLOOR))))
         start = [float(estimate[0]), float(estimate[1]), log_force]
-        if self.misfit(measured, self.conductance(*start)) <= self.threshold:
+        base = self.conductance(*start)
+        if self.misfit(measured, base) <= self.threshold:
             return 1.0
-        if self.refined_misfit(measured, start, self.threshold) <= self.threshold:
+        if self.refined_misfit(measured, start, self.threshold, base) <= self.threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
         total = sum(weights)
