@@ -83,7 +83,9 @@ def test_check_on_one_frame_equals_the_batch_check() -> None:
     # shift half the estimates so that more frames need refining from a poor start
     estimate[::2, :2] += np.random.default_rng(5).normal(0.0, 3.0, (len(estimate[::2]), 2)).astype(np.float32)
     batch = check.p_one_press(FRAMES, estimate)
-    single = np.array([check.one_frame.p_one_press(f.tolist(), e.tolist()) for f, e in zip(FRAMES, estimate)])
+    single = np.array(
+        [check.one_frame.p_one_press(f.tolist(), e.tolist()) for f, e in zip(FRAMES, estimate, strict=True)]
+    )
     np.testing.assert_array_equal(single, batch)
     assert {0.0, 0.5, 1.0} <= set(single.tolist())
 
@@ -91,7 +93,7 @@ def test_check_on_one_frame_equals_the_batch_check() -> None:
     measured = fsr.Readout(SCENE.sensor.readout).conductance_us(FRAMES[:100].astype(np.float64))
     starts = np.column_stack([rng.uniform(-25, 25, (100, 2)), rng.uniform(-1.0, 2.5, 100)])
     want = check._refined_misfit(measured, starts.copy())
-    got = [check.one_frame.refined_misfit(m.tolist(), s.tolist(), -1.0) for m, s in zip(measured, starts)]
+    got = [check.one_frame.refined_misfit(m.tolist(), s.tolist(), -1.0) for m, s in zip(measured, starts, strict=True)]
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(
         [check.one_frame.conductance(*s) for s in starts.tolist()], check.conductance(starts), rtol=1e-12, atol=1e-12
