@@ -127,8 +127,10 @@ class OneFrameCheck:
 
     def measured(self, codes: list[float]) -> list[float]:
         """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
-        table = self.code_conductance
-        return [table[int(c)] if c.is_integer() else float(self.readout.conductance_us(np.array(c))) for c in codes]
+        if all(c.is_integer() for c in codes):
+            table = self.code_conductance
+            return [table[int(c)] for c in codes]
+        return [float(g) for g in self.readout.conductance_us(np.array(codes))]  # e.g. a calibrated film's
 
     def _scale(self, measured: list[float]) -> float:
         """The misfit's denominator: RMS measured conductance plus the floor."""

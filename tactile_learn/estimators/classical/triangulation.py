@@ -57,7 +57,7 @@ from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.triangulation_one_frame import OneFrameTriangulation
-from tactile_learn.fsr_check import one_press_check, with_one_press
+from tactile_learn.fsr_check import one_press_check
 from tactile_learn.validation.fsr import fsr_check
 
 __all__ = [
@@ -417,11 +417,19 @@ class TriangulationEstimator(Estimator):
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         if len(readings) == 1:
             return self._predict_frame(self.prepared_state("one_frame_"), readings[0].tolist())
+        return self.predict_batch(readings)
+
+    def predict_batch(self, readings: np.ndarray) -> np.ndarray:
+        """The vectorised path for checked nominal-film readings (B, 6), any B (``predict`` takes
+        it from two frames up; the single-frame path gives the same results)."""
         model: LoadModel = self.prepared_state("model_")
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
         out, _ = triangulate(loads, config, model, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return with_one_press(readings, out.astype(np.float32), self.scene, self.check_)
+        result = np.empty((len(out), 6), dtype=np.float32)
+        result[:, :5] = out
+        result[:, 5] = self.check_.p_one_press(readings, result[:, :5])  # reads the float32 estimate
+        return result
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):
