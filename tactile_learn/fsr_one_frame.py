@@ -37,24 +37,26 @@ def expit(z: float) -> float:
         return 0.0
 
 
-def _solve3(a: list[list[float]], b: list[float]) -> list[float]:
-    """``a x = b`` for a 3 x 3 system, Gaussian elimination with partial pivoting; a singular
-    system (no information at all, e.g. every sensor below its break) gives no step."""
-    m = [[*row, v] for row, v in zip(a, b, strict=True)]
-    for col in range(3):
-        pivot = max(range(col, 3), key=lambda r: abs(m[r][col]))
-        if m[pivot][col] == 0.0:
-            return [0.0, 0.0, 0.0]
-        m[col], m[pivot] = m[pivot], m[col]
-        for r in range(col + 1, 3):
-            factor = m[r][col] / m[col][col]
-            if factor:
-                for c in range(col, 4):
-                    m[r][c] -= factor * m[col][c]
-    x = [0.0, 0.0, 0.0]
-    for r in (2, 1, 0):
-        x[r] = (m[r][3] - sum(m[r][c] * x[c] for c in range(r + 1, 3))) / m[r][r]
-    return x
+def _solve_spd3(
+    a00: float, a01: float, a02: float, a11: float, a12: float, a22: float, b0: float, b1: float, b2: float
+) -> tuple[float, float, float]:
+    """``A x = b`` for a symmetric positive definite 3 x 3 ``A`` (the damped normal equations:
+    ``J^T J`` plus a positive ridge), by elimination without pivoting (stable for such matrices);
+    a zero pivot (no information at all) gives no step."""
+    if a00 == 0.0:
+        return 0.0, 0.0, 0.0
+    m1, m2 = a01 / a00, a02 / a00
+    c11, c12, d1 = a11 - m1 * a01, a12 - m1 * a02, b1 - m1 * b0
+    c21, c22, d2 = a12 - m2 * a01, a22 - m2 * a02, b2 - m2 * b0
+    if c11 == 0.0:
+        return 0.0, 0.0, 0.0
+    m3 = c21 / c11
+    e22, f2 = c22 - m3 * c12, d2 - m3 * d1
+    if e22 == 0.0:
+        return 0.0, 0.0, 0.0
+    x2 = f2 / e22
+    x1 = (d1 - c12 * x2) / c11
+    return (b0 - a01 * x1 - a02 * x2) / a00, x1, x2
 
 
 class OneFrameCheck:
@@ -170,10 +172,10 @@ class OneFrameCheck:
             a00, a11, a22 = sum(map(mul, j0, j0)), sum(map(mul, j1, j1)), sum(map(mul, j2, j2))
             a01, a02, a12 = sum(map(mul, j0, j1)), sum(map(mul, j0, j2)), sum(map(mul, j1, j2))
             ridge = damping * (a00 + a11 + a22 + 1e-12)
-            delta = _solve3(
-                [[a00 + ridge, a01, a02], [a01, a11 + ridge, a12], [a02, a12, a22 + ridge]],
-                [sum(map(mul, j0, resid)), sum(map(mul, j1, resid)), sum(map(mul, j2, resid))],
-            )
+            delta = _solve_spd3(
+                a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge,
+                sum(map(mul, j0, resid)), sum(map(mul, j1, resid)), sum(map(mul, j2, resid)),
+            )  # fmt: skip
             candidate = [
                 p + (-lim if s < -lim else lim if s > lim else s)
                 for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)
