@@ -88,6 +88,10 @@ def test_check_on_one_frame_equals_the_batch_check() -> None:
     )
     np.testing.assert_array_equal(single, batch)
     assert {0.0, 0.5, 1.0} <= set(single.tolist())
+    # small batches refine both starts of their doubtful frames in one pass (a frame stops once
+    # either start passes): the same flags
+    small = [check.p_one_press(FRAMES[i : i + 16], estimate[i : i + 16]) for i in range(0, len(FRAMES), 16)]
+    np.testing.assert_array_equal(np.concatenate(small), batch)
 
     rng = np.random.default_rng(6)
     measured = fsr.Readout(SCENE.sensor.readout).conductance_us(FRAMES[:100].astype(np.float64))
