@@ -49,7 +49,7 @@ from scipy.interpolate import LSQUnivariateSpline
 
 from synth.errors import DataError
 from synth.materials import Material
-from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
+from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
 
 __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
 
@@ -58,6 +58,11 @@ __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "
 FIT_HZ = 20.0
 #: the fit starts this long before the onset (earlier samples hold the heater's settling)
 PRE_S = 0.3
+#: the contact starts at most this long before the onset
+LEAD_MAX_S = 1.5
+#: the noise's pre-contact segment ends this long before the onset (a press's first touch comes
+#: ~0.3 s before its force's half-plateau crossing on the robot recordings)
+QUIET_BEFORE_S = 0.5
 #: prior s.d. of the object's temperature around the sensor's (K) and of a drift (K/s)
 OBJECT_PRIOR_K = 25.0
 DRIFT_PRIOR_K_S = 0.5
@@ -71,6 +76,13 @@ PRIOR_LINEAR_SD = 1.0
 #: the priors' weight (0: off). Off by default: on the robot recordings they moved the fit to worse
 #: local minima without making two sessions agree (the report lists what the data leave free)
 PRIOR_WEIGHT = 0.0
+#: per-touch nuisance terms the fit may add (see synth.sensors.thermal.dynamics.nuisance_terms)
+NUISANCE_TERMS = ("object_flux", "heater_steps")
+_NUISANCE_DOC = {
+    "object_flux": "the object's flux F = k g (its temperature not uniform with depth: a cooled block warming "
+    "from its surface)",
+    "heater_steps": "the heater's power steps at the contact and at t_off (a controller's response read as steps)",
+}
 #: solver evaluations of each multi-start's short run
 SHORT_RUN = 15
 
@@ -166,10 +178,19 @@ def noise_levels(series: Sequence[tuple[np.ndarray, np.ndarray, float]]) -> dict
     Each record is smoothed by a least-squares cubic spline with knots every 0.25 s (which follows
     every physical change of these sensors); ``sigma_w`` is the RMS of what it leaves before the
     onset, ``sigma_t`` the median over records of that remainder's RMS divided by the slope's RMS
-    where the curve moves faster than 0.1 K/s (time-stamp jitter moves a sample by ``slope * dt``).
+    where the curve moves faster than 0.1 K/s (time-stamp jitter moves a sample by ``slope * dt``),
+    ``precontact_k`` the median scatter of the segment before any contact about a quadratic trend
+    (the noise's whole variance per sample, correlated parts included; see :func:`_residual_summary`).
     """
-    white, jitter = [], []
+    white, jitter, pre_scatter = [], [], []
     for t, x, onset in series:
+        # before any contact: the scatter about a quadratic trend (the heater's settling), every
+        # correlated component up to the segment's length
+        quiet = (t > t[0] + 0.05) & (t < onset - QUIET_BEFORE_S)
+        if quiet.sum() >= 20:
+            tq = t[quiet] - t[quiet].mean()
+            trend = np.polyval(np.polyfit(tq, x[quiet], 2), tq)
+            pre_scatter.append(float(np.sqrt(np.mean((x[quiet] - trend) ** 2))))
         knots = np.arange(t[0] + 0.25, t[-1] - 0.2, 0.25)
         if len(knots) < 4:
             continue
@@ -185,6 +206,7 @@ def noise_levels(series: Sequence[tuple[np.ndarray, np.ndarray, float]]) -> dict
     return {
         "white_k": float(np.median(white)) if white else 1e-3,
         "timing_jitter_s": float(np.median(jitter)) if jitter else 0.0,
+        "precontact_k": float(np.median(pre_scatter)) if pre_scatter else (float(np.median(white)) if white else 1e-3),
     }
 
 
@@ -198,8 +220,25 @@ def _class_nominal(materials: Sequence[Material]) -> tuple[float, float]:
 class _Problem:
     """The variable-projection least-squares problem over a batch of touches."""
 
-    def __init__(self, touches: list[FitTouch], classes: Sequence[Sequence[Material]], heater_off: bool) -> None:
+    def __init__(
+        self,
+        touches: list[FitTouch],
+        classes: Sequence[Sequence[Material]],
+        heater_off: bool,
+        nuisance: Sequence[str] = (),
+    ) -> None:
         self.touches = touches
+        unknown = set(nuisance) - set(NUISANCE_TERMS)
+        if unknown:
+            raise ValueError(f"unknown nuisance term(s) {sorted(unknown)}: choose from {NUISANCE_TERMS}")
+        #: per-touch nuisance terms (linear): the object's flux (a temperature not uniform with
+        #: depth) and the heater's power steps at the contact and at t_off (in place of the shared ambient)
+        self.nuisance = tuple(n for n in NUISANCE_TERMS if n in nuisance and (n != "heater_steps" or heater_off))
+        #: the linear columns they add (before T_obj)
+        self.nuisance_columns = [
+            *(["object_flux_w_m2"] if "object_flux" in self.nuisance else []),
+            *(["heater_step_at_contact_w_m2", "heater_step_at_off_w_m2"] if "heater_steps" in self.nuisance else []),
+        ]
         self.n = len(touches)
         self.passive = all(t.passive is not None for t in touches)
         self.heater_off = heater_off
@@ -238,7 +277,7 @@ class _Problem:
         self.class_e = np.array([_class_nominal(mats)[0] for mats in classes])
         self.class_alpha = np.array([_class_nominal(mats)[1] for mats in classes])
         params.append(Parameter("contact.radius_mm", "mm", 0.1, 50.0, 5.0, True, "contact patch radius a"))
-        params.append(Parameter("contact.lead_s", "s", -0.3, 1.5, 0.1, False, "contact start before the onset"))
+        params.append(Parameter("contact.lead_s", "s", -0.3, LEAD_MAX_S, 0.1, False, "contact start before the onset"))
         params.append(Parameter("contact.ramp_s", "s", 0.02, 2.0, 0.1, True, "contact build-up time"))
         if heater_off:
             params.append(
@@ -290,8 +329,9 @@ class _Problem:
             lag2_s=values[f"{channel}.lag2_s"],
         )
 
-    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Columns (C, n, W, 3) per channel (R0, drift, obj) and the heater's power column (n, W)."""
+    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Columns (C, n, W, 3) per channel (R0, drift, obj), the heater's power column (n, W) and the
+        per-touch nuisance columns (C, n, W, K) (K = 0 without them)."""
         values, lead, ramp = self.unpack(free)
         radius = values["contact.radius_mm"] * 1e-3
         e = self.class_e[self.label]
@@ -301,10 +341,23 @@ class _Problem:
         channels = ("heated", "passive") if self.passive else ("heated",)
         cols = np.zeros((len(channels), self.n, self.length, 3))
         power = np.zeros((self.n, self.length))
+        extra = np.zeros((len(channels), self.n, self.length, self.n_nuisance))
         for c, ch in enumerate(channels):
             model = self.channel_model(values, ch, e, spreading)
             t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
             terms = channel_terms(model, t_rel, ramp, t_off)
+            if self.nuisance:
+                # the object's flux (one amplitude per touch for both channels: the same object),
+                # then the heater's steps (heated channel only) at the contact and at t_off
+                steps = "heater_steps" in self.nuisance and c == 0
+                times = (np.zeros(self.n), lead + values["heater.off_after_onset_s"]) if steps else ()
+                more = nuisance_terms(model, t_rel, ramp, times)
+                j = 0
+                if "object_flux" in self.nuisance:
+                    extra[c, :, :, 0] = more.flux
+                    j = 1
+                if steps:
+                    extra[c, :, :, j], extra[c, :, :, j + 1] = more.steps[0], more.steps[1]
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
             # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
             cols[c, :, :, 0] = 1.0 + terms.obj
@@ -317,13 +370,18 @@ class _Problem:
                 cols[c, :, :, 0] -= g * terms.power
                 cols[c, :, :, 1] -= (g * lead_lag + cap) * terms.power
                 power = g * terms.power  # the column of T_amb (shared by every touch)
-        return cols, power
+        return cols, power, extra
+
+    @property
+    def n_nuisance(self) -> int:
+        return len(self.nuisance_columns)
 
     def solve(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Residuals (C, n, W) (0 outside each record), linear values (n, 2C + 1), and ``Q``."""
-        cols, power = self.design(free)
+        cols, power, extra = self.design(free)
         n_ch = cols.shape[0]
-        m = 2 * n_ch + 1  # R0 and drift per channel, then T_obj
+        k = self.n_nuisance
+        m = 2 * n_ch + 1 + k  # R0 and drift per channel, the nuisance terms, then T_obj
         a = np.zeros((self.n, n_ch * self.length + 1 + n_ch, m))
         y = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
         q = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
@@ -333,6 +391,7 @@ class _Problem:
             a[:, rows, 2 * c] = cols[c, :, :, 0] * w
             a[:, rows, 2 * c + 1] = cols[c, :, :, 1] * w
             a[:, rows, -1] = cols[c, :, :, 2] * w
+            a[:, rows, 2 * n_ch : 2 * n_ch + k] = extra[c] * w[:, :, None]
             y[:, rows] = self.x[c] * w
         q[:, : self.length] = power * w
         # weak priors (rows after the data): T_obj near the first channel's onset value, drifts small
@@ -348,10 +407,13 @@ class _Problem:
         scale = np.sqrt((a**2).sum(axis=1)) + 1e-12
         an = a / scale[:, None, :]
         pinv = np.linalg.pinv(an)  # (n, m, rows)
-        proj_y = y - np.einsum("nrm,nmk,nk->nr", an, pinv, y)
-        proj_q = q - np.einsum("nrm,nmk,nk->nr", an, pinv, q)
+        # (A (A+ y)): two matrix-vector products per touch, not one three-operand sum
+        proj_y = y - (an @ (pinv @ y[:, :, None]))[:, :, 0]
+        proj_q = q - (an @ (pinv @ q[:, :, None]))[:, :, 0]
         denom = float((proj_q**2).sum())
-        power_q = float((proj_q * proj_y).sum()) / denom if self.heater_off and denom > 0 else 0.0
+        # (with per-touch heater steps the shared ambient is one of their combinations: not fitted)
+        shared_ambient = self.heater_off and "heater_steps" not in self.nuisance and denom > 0
+        power_q = float((proj_q * proj_y).sum()) / denom if shared_ambient else 0.0
         sol = np.einsum("nmk,nk->nm", pinv, y - power_q * q) / scale
         fit = np.einsum("nrm,nm->nr", a, sol) + power_q * q
         res = (fit - y)[:, : n_ch * self.length].reshape(self.n, n_ch, self.length).transpose(1, 0, 2)
@@ -382,10 +444,13 @@ def calibrate_channels(
     starts: int = 8,
     seed: int = 0,
     heater_off: bool = True,
+    nuisance: Sequence[str] = (),
 ) -> CalibrationResult:
-    """Multi-start fit of the model to ``touches`` (see the module docstring)."""
+    """Multi-start fit of the model to ``touches`` (see the module docstring). ``nuisance``: the
+    per-touch terms to fit, of :data:`NUISANCE_TERMS` (see
+    :func:`synth.sensors.thermal.dynamics.nuisance_terms`)."""
     started = time.perf_counter()
-    problem = _Problem(touches, classes, heater_off)
+    problem = _Problem(touches, classes, heater_off, nuisance)
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
 
@@ -416,9 +481,9 @@ def calibrate_channels(
     evaluations += int(final.nfev)
     res, sol, power_q = problem.solve(final.x)
     values, lead, ramp = problem.unpack(final.x)
-    if problem.heater_off:
+    if problem.heater_off and "heater_steps" not in problem.nuisance:
         values["heater.ambient_c"] = power_q
-    spread = _touch_spread(touches, classes, heater_off, problem, final.x)
+    spread, own_res = _touch_spread(touches, classes, heater_off, problem, final.x)
     per_touch = []
     n_ch = 2 if problem.passive else 1
     for i in range(len(touches)):
@@ -429,8 +494,10 @@ def calibrate_channels(
         if n_ch == 2:
             row["passive_onset_c"] = float(sol[i, 2])
             row["passive_drift_k_s"] = float(sol[i, 3])
+        for j, name in enumerate(problem.nuisance_columns):
+            row[name] = float(sol[i, 2 * n_ch + j])
         per_touch.append(row)
-    report = _report(problem, final, res, values, per_touch, noise, evaluations, time.perf_counter() - started)
+    report = _report(problem, final, res, own_res, values, per_touch, noise, evaluations, time.perf_counter() - started)
     return CalibrationResult(values, per_touch, {**noise.get("heated", {})}, report)
 
 
@@ -440,15 +507,17 @@ def _touch_spread(
     heater_off: bool,
     problem: _Problem,
     shared: np.ndarray,
-) -> list[dict[str, float]]:
+) -> tuple[list[dict[str, float]], np.ndarray]:
     """How much the touches differ: each touch refitted alone for its contact (a conductance
     factor, the lead and the build-up time), everything else at the shared fit. Their spread is
-    what a calibrated scene draws from (a press is never quite the same twice)."""
+    what a calibrated scene draws from (a press is never quite the same twice). Also returns the
+    residuals (C, n, W) of every touch with its own contact (0 outside its record)."""
     names = [p.name for p in problem.shared]
     i_lead, i_ramp = names.index("contact.lead_s"), names.index("contact.ramp_s")
     rows = []
-    for tc in touches:
-        single = _Problem([tc], classes, heater_off)
+    own = np.zeros((2 if problem.passive else 1, problem.n, problem.length))
+    for i, tc in enumerate(touches):
+        single = _Problem([tc], classes, heater_off, problem.nuisance)
 
         def residuals(theta: np.ndarray, single: _Problem = single) -> np.ndarray:
             single.h_scale = np.array([math.exp(theta[0])])
@@ -465,6 +534,11 @@ def _touch_spread(
         s2 = float(np.mean(fit.fun**2))
         # the factor's posterior s.d. (log): a wood at room temperature barely depends on H
         cov = np.linalg.pinv(jac.T @ jac) * s2
+        residuals(fit.x)  # sets the touch's own conductance factor
+        x_own = shared.copy()
+        x_own[i_lead], x_own[i_ramp] = fit.x[1], fit.x[2]
+        res_own = single.solve(x_own)[0][:, 0]
+        own[:, i, : res_own.shape[1]] = res_own
         rows.append(
             {
                 "touch_conductance_factor": math.exp(float(fit.x[0])),
@@ -474,7 +548,7 @@ def _touch_spread(
                 "touch_rms_k": float(np.sqrt(np.mean(fit.fun[: -len(single.shared)] ** 2))) * MODEL_ERROR_K,
             }
         )
-    return rows
+    return rows, own
 
 
 #: why a parameter sits at a bound, by (parameter, bound)
@@ -496,6 +570,7 @@ def _report(
     problem: _Problem,
     fit: optimize.OptimizeResult,
     res: np.ndarray,
+    own_res: np.ndarray,
     values: dict[str, float],
     per_touch: list[dict[str, float]],
     noise: dict[str, dict[str, float]],
@@ -557,35 +632,77 @@ def _report(
                 "above the heated reading: the fitted power change is a rise (more heating after the press, "
                 "as a controller that goes on holding its set point adds), not a switch-off"
             )
-    channels = ("heated", "passive") if problem.passive else ("heated",)
-    residual: dict[str, Any] = {}
-    total_k, total_sigma = [], []
-    for c, ch in enumerate(channels):
-        nz = noise.get(ch, {"white_k": 1e-3, "timing_jitter_s": 0.0})
-        fitted = problem.x[c] + res[c]  # the model's curve
-        slope = np.gradient(fitted, axis=1) * FIT_HZ
-        sigma = np.sqrt(nz["white_k"] ** 2 + (nz["timing_jitter_s"] * slope) ** 2)
-        r = res[c][problem.mask]
-        z = (res[c] / sigma)[problem.mask]
-        total_k.append(r)
-        total_sigma.append(z)
-        residual[ch] = {"rms_k": float(np.sqrt(np.mean(r**2))), "rms_sigma": float(np.sqrt(np.mean(z**2)))}
-        for i, row in enumerate(per_touch):
-            row[f"{ch}_rms_k"] = float(np.sqrt(np.mean(res[c, i][problem.mask[i]] ** 2)))
-    rms_sigma = float(np.sqrt(np.mean(np.concatenate(total_sigma) ** 2)))
+    residual = _residual_summary(problem, own_res, noise, per_touch, "own")
+    residual["shared_contact"] = _residual_summary(problem, res, noise, per_touch, "shared")
+    residual["contact"] = (
+        "each touch with its own contact (conductance factor, lead, build-up: the touch's nuisance "
+        "parameters, refitted with everything else shared); shared_contact: one contact for every touch"
+    )
     return {
         "model": "lumped channel(s) + two thermistor lags + contact ramp + pre-contact drift"
-        + (" + heater switched off after the onset" if problem.heater_off else ""),
+        + (
+            " + heater switched off after the onset"
+            if problem.heater_off and "heater_steps" not in problem.nuisance
+            else ""
+        )
+        + "".join(f" + per touch: {_NUISANCE_DOC[n]}" for n in problem.nuisance),
         "parameters": params,
         "at_bound": at_bound,
         "not_identified": unidentified,
         "per_touch": per_touch,
         "noise": noise,
-        "residual": {
-            **residual,
-            "rms_k": float(np.sqrt(np.mean(np.concatenate(total_k) ** 2))),
-            "rms_sigma": rms_sigma,
-            "within_3_sigma": rms_sigma <= 3.0,
-        },
+        "residual": residual,
         "solver": {"evaluations": evaluations, "seconds": seconds, "status": int(fit.status), "cost": float(fit.cost)},
+    }
+
+
+def _residual_summary(
+    problem: _Problem,
+    res: np.ndarray,
+    noise: dict[str, dict[str, float]],
+    per_touch: list[dict[str, float]],
+    tag: str,
+) -> dict[str, Any]:
+    """Residuals ``res`` (C, n, W) per channel and overall: RMS in K and in noise sigma, two ways:
+
+    - ``rms_sigma``: against ``sigma(t)^2 = sigma_w^2 + (sigma_t dx/dt)^2`` (white noise from a
+      0.25 s spline's remainder before the onset, timing jitter; see :func:`noise_levels`);
+    - ``rms_sigma_precontact``: ``sigma_w`` replaced by the pre-contact segment's scatter about a
+      quadratic trend at the recorder's rate (``precontact_k``): the correlated noise's own
+      variance at every time scale up to the segment's length (~0.4 s), which the spline's knots
+      would partly follow.
+
+    Both compare a per-sample RMS with a per-sample variance: a correlated noise has the same
+    variance per sample, it only gives the residual fewer independent samples. Each touch's row
+    gets ``<channel>_rms_k`` (tag ``shared``) or ``<channel>_own_rms_k`` (tag ``own``)."""
+    channels = ("heated", "passive") if problem.passive else ("heated",)
+    out: dict[str, Any] = {}
+    total_k, total_z, total_zp = [], [], []
+    for c, ch in enumerate(channels):
+        nz = noise.get(ch, {"white_k": 1e-3, "timing_jitter_s": 0.0})
+        fitted = problem.x[c] + res[c]  # the model's curve
+        jitter = nz["timing_jitter_s"] * np.gradient(fitted, axis=1) * FIT_HZ
+        sigma = np.sqrt(nz["white_k"] ** 2 + jitter**2)
+        sigma_pre = np.sqrt(nz.get("precontact_k", nz["white_k"]) ** 2 + jitter**2)
+        r = res[c][problem.mask]
+        z = (res[c] / sigma)[problem.mask]
+        zp = (res[c] / sigma_pre)[problem.mask]
+        total_k.append(r)
+        total_z.append(z)
+        total_zp.append(zp)
+        out[ch] = {
+            "rms_k": float(np.sqrt(np.mean(r**2))),
+            "rms_sigma": float(np.sqrt(np.mean(z**2))),
+            "rms_sigma_precontact": float(np.sqrt(np.mean(zp**2))),
+        }
+        key = f"{ch}_rms_k" if tag == "shared" else f"{ch}_own_rms_k"
+        for i, row in enumerate(per_touch):
+            row[key] = float(np.sqrt(np.mean(res[c, i][problem.mask[i]] ** 2)))
+    rms_sigma = float(np.sqrt(np.mean(np.concatenate(total_z) ** 2)))
+    return {
+        **out,
+        "rms_k": float(np.sqrt(np.mean(np.concatenate(total_k) ** 2))),
+        "rms_sigma": rms_sigma,
+        "rms_sigma_precontact": float(np.sqrt(np.mean(np.concatenate(total_zp) ** 2))),
+        "within_3_sigma": rms_sigma <= 3.0,
     }
