@@ -25,11 +25,21 @@ and ramp and the time of the heater's power change. Linear, solved exactly insid
 projection): per touch ``R0_c, r_c, T_obj``, and the shared ``T_amb``, with weak priors that keep
 them physical when a channel alone cannot pin them (``T_obj`` within ~25 K of the sensor, drifts of
 a few tenths of K/s). Then every touch is refitted alone for its own contact (a conductance factor,
-lead and ramp): their spread is the touch-to-touch variation a calibrated scene draws from.
+lead and ramp): their spread is the touch-to-touch variation a calibrated scene draws from. Last
+(``touch_contact``), the shared parameters and every touch's own contact are refined together (a
+press is never the same twice: a real user's touches have their own contact; weak priors tie them
+to the shared one, with which they trade off), with a Jacobian that steps all touches' own
+parameters at once (each moves its own touch's rows only). Optional per-touch nuisance terms
+(``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
+object's flux (its temperature not uniform with depth) and the heater's power steps.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
 strays from a smooth spline relative to its slope), so ``sigma(t)^2 = sigma_w^2 + (sigma_t dx/dt)^2``.
+A second unit, ``precontact_k``, is the scatter of the segment before any contact about a quadratic
+trend (the noise's whole per-sample variance, its correlated parts included); the report gives
+both (``rms_sigma``, ``rms_sigma_precontact``), with each touch's own contact (the headline) and with
+one shared contact (``shared_contact``).
 The report gives the fit's residual in those units, every parameter with its bounds, the ones at a
 bound (with the likely reason), and the ones the data do not identify (posterior s.d. above a factor
 of 2, or a correlation above 0.99 with another).
@@ -37,6 +47,7 @@ of 2, or a correlation above 0.99 with another).
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Sequence
@@ -83,6 +94,8 @@ _NUISANCE_DOC = {
     "from its surface)",
     "heater_steps": "the heater's power steps at the contact and at t_off (a controller's response read as steps)",
 }
+#: solver evaluations of the joint refinement (shared + every touch's own contact)
+TOUCH_RUN = 40
 #: solver evaluations of each multi-start's short run
 SHORT_RUN = 15
 
@@ -123,6 +136,17 @@ _CHANNEL_PARAMS = (
 #: the passive channel's heat capacity and contact conductance as ratios to the heated twin's:
 #: (lowest, highest, start)
 _TWIN_RATIOS = {"heat_capacity_j_m2k": (0.1, 10.0, 0.5), "conductance_w_m2k": (0.05, 10.0, 0.5)}
+
+
+#: every touch's own contact (relative to the shared one): log conductance factor, lead offset (s),
+#: log build-up factor; ``hi`` is also the s.d. of its weak prior (in TOUCH_PRIOR_SD units)
+_TOUCH_CONTACT = (
+    Parameter("touch.log_conductance_factor", "", -math.log(10.0), math.log(10.0), 0.0, False, "log H factor"),
+    Parameter("touch.lead_offset_s", "s", -0.5, 0.5, 0.0, False, "contact start relative to the shared lead"),
+    Parameter("touch.log_ramp_factor", "", -math.log(30.0), math.log(30.0), 0.0, False, "log build-up factor"),
+)
+#: the touches' own contacts' prior s.d., as a fraction of their bounds
+TOUCH_PRIOR_SD = 0.5
 
 
 @dataclass
@@ -288,6 +312,14 @@ class _Problem:
         #: per-touch contact quality: every channel's H times this (1 in the shared fit)
         self.h_scale = np.ones(self.n)
 
+    def with_touch_contact(self) -> _Problem:
+        """The same problem with every touch's own contact (free, after the shared fit): its
+        conductance factor, its lead and its build-up time relative to the shared ones, each with a
+        weak prior (they trade off with the shared contact)."""
+        twin = copy.copy(self)
+        twin.per_touch = list(_TOUCH_CONTACT)
+        return twin
+
     @property
     def n_free(self) -> int:
         return len(self.shared)
@@ -304,7 +336,7 @@ class _Problem:
         )
 
     def unpack(self, free: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
-        values = {p.name: p.from_free(float(v)) for p, v in zip(self.shared, free, strict=True)}
+        values = {p.name: p.from_free(float(v)) for p, v in zip(self.shared, free[: len(self.shared)], strict=True)}
         for name in _TWIN_RATIOS:
             ratio = name.replace("_j_m2k", "").replace("_w_m2k", "") + "_ratio"
             if f"passive.{ratio}" in values:
@@ -315,6 +347,11 @@ class _Problem:
                 values[f"{ch}.lag2_s"] = values[f"{ch}.lags_s"] * (1.0 - values[f"{ch}.lag_share"])
         lead = np.full(self.n, values["contact.lead_s"])
         ramp = np.full(self.n, values["contact.ramp_s"])
+        if self.per_touch:
+            k, n = len(self.shared), self.n
+            self.h_scale = np.exp(free[k : k + n])
+            lead = lead + free[k + n : k + 2 * n]
+            ramp = ramp * np.exp(free[k + 2 * n : k + 3 * n])
         return values, lead, ramp
 
     def channel_model(self, values: dict[str, Any], channel: str, effusivity: Any, spreading: Any) -> ChannelModel:
@@ -423,14 +460,44 @@ class _Problem:
     def residuals(self, free: np.ndarray) -> np.ndarray:
         """Data residuals in units of the model error, then one weak prior row per parameter."""
         res, _, _ = self.solve(free)
-        return np.concatenate([res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)])
+        rows = [res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)]
+        if self.per_touch:  # the touches' own contacts: weak priors around the shared one
+            widths = np.repeat([p.hi for p in self.per_touch], self.n)
+            rows.append(free[len(self.shared) :] / widths / TOUCH_PRIOR_SD)
+        return np.concatenate(rows)
+
+    def jacobian(self, free: np.ndarray) -> np.ndarray:
+        """Forward differences (relative step 1e-5, inside the bounds): one evaluation per shared
+        parameter and one per kind of per-touch parameter (a touch's own contact moves its own rows
+        only, so all touches are stepped at once)."""
+        hi = self.bounds()[1]
+        f0 = self.residuals(free)
+        k, n = len(self.shared), self.n
+        jac = np.zeros((len(f0), len(free)))
+        touch_of_row = np.concatenate(
+            [np.tile(np.nonzero(self.mask)[0], 2 if self.passive else 1), np.full(k, -1), np.tile(np.arange(n), 3)]
+        )
+        groups = [[j] for j in range(k)] + [list(range(k + g * n, k + (g + 1) * n)) for g in range(len(self.per_touch))]
+        for cols in groups:
+            step = np.zeros_like(free)
+            h = 1e-5 * np.maximum(1.0, np.abs(free[cols]))
+            h = np.where(free[cols] + h > hi[cols], -h, h)
+            step[cols] = h
+            df = self.residuals(free + step) - f0
+            if len(cols) == 1:
+                jac[:, cols[0]] = df / h[0]
+            else:  # column of touch i: the rows of touch i
+                for i, j in enumerate(cols):
+                    rows = touch_of_row == i
+                    jac[rows, j] = df[rows] / h[i]
+        return jac
 
     def prior(self, free: np.ndarray) -> np.ndarray:
         """Weak priors around the typical values (a factor of 10 for a scale, 1 s for a time): a
         parameter the data leave free stays where a sensor usually is instead of drifting to a
         bound, and two sessions of one sensor calibrate alike."""
         rows = []
-        for p, v in zip(self.shared, free, strict=True):
+        for p, v in zip(self.shared, free[: len(self.shared)], strict=True):
             width = PRIOR_LOG_SD if p.log else PRIOR_LINEAR_SD
             rows.append((v - p.to_free(p.start)) / width)
         return np.array(rows)
@@ -445,10 +512,12 @@ def calibrate_channels(
     seed: int = 0,
     heater_off: bool = True,
     nuisance: Sequence[str] = (),
+    touch_contact: bool = True,
 ) -> CalibrationResult:
     """Multi-start fit of the model to ``touches`` (see the module docstring). ``nuisance``: the
     per-touch terms to fit, of :data:`NUISANCE_TERMS` (see
-    :func:`synth.sensors.thermal.dynamics.nuisance_terms`)."""
+    :func:`synth.sensors.thermal.dynamics.nuisance_terms`); ``touch_contact``: after the shared
+    fit, refine it jointly with every touch's own contact (conductance factor, lead, build-up)."""
     started = time.perf_counter()
     problem = _Problem(touches, classes, heater_off, nuisance)
     lo, hi = problem.bounds()
@@ -484,6 +553,42 @@ def calibrate_channels(
     if problem.heater_off and "heater_steps" not in problem.nuisance:
         values["heater.ambient_c"] = power_q
     spread, own_res = _touch_spread(touches, classes, heater_off, problem, final.x)
+    shared_res = res
+    if touch_contact:
+        # the joint refinement: shared parameters and every touch's own contact together, from the
+        # shared fit and the touches' own refits
+        problem = problem.with_touch_contact()
+        lo2, hi2 = problem.bounds()
+        x0 = np.concatenate(
+            [
+                final.x,
+                [math.log(r["touch_conductance_factor"]) for r in spread],
+                [r["touch_lead_s"] - float(lead[0]) for r in spread],
+                [math.log(r["touch_ramp_s"] / float(ramp[0])) for r in spread],
+            ]
+        )
+        final = optimize.least_squares(
+            problem.residuals,
+            np.clip(x0, lo2 + 1e-9, hi2 - 1e-9),
+            jac=problem.jacobian,
+            bounds=(lo2, hi2),
+            x_scale="jac",
+            max_nfev=TOUCH_RUN,
+        )
+        evaluations += int(final.nfev) + int(final.njev or 0) * (problem.n_free + len(problem.per_touch))
+        res, sol, power_q = problem.solve(final.x)
+        values, lead, ramp = problem.unpack(final.x)
+        if problem.heater_off and "heater_steps" not in problem.nuisance:
+            values["heater.ambient_c"] = power_q
+        own_res = res
+        k = problem.n_free
+        jac = np.asarray(final.jac)
+        cov = np.linalg.pinv(jac.T @ jac) * float(np.mean(final.fun**2))
+        for i, r in enumerate(spread):
+            r["touch_conductance_factor"] = float(problem.h_scale[i])
+            r["touch_conductance_sd_log"] = float(np.sqrt(max(cov[k + i, k + i], 0.0)))
+            r["touch_lead_s"] = float(lead[i])
+            r["touch_ramp_s"] = float(ramp[i])
     per_touch = []
     n_ch = 2 if problem.passive else 1
     for i in range(len(touches)):
@@ -497,7 +602,11 @@ def calibrate_channels(
         for j, name in enumerate(problem.nuisance_columns):
             row[name] = float(sol[i, 2 * n_ch + j])
         per_touch.append(row)
-    report = _report(problem, final, res, own_res, values, per_touch, noise, evaluations, time.perf_counter() - started)
+    report = _report(
+        problem, final, shared_res, own_res, values, per_touch, noise, evaluations, time.perf_counter() - started
+    )
+    if problem.per_touch:
+        report["touch_contact"] = _touch_bounds(problem, final.x)
     return CalibrationResult(values, per_touch, {**noise.get("heated", {})}, report)
 
 
@@ -706,3 +815,25 @@ def _residual_summary(
         "rms_sigma_precontact": float(np.sqrt(np.mean(np.concatenate(total_zp) ** 2))),
         "within_3_sigma": rms_sigma <= 3.0,
     }
+
+
+def _touch_bounds(problem: _Problem, free: np.ndarray) -> dict[str, Any]:
+    """Every touch's own contact: how many touches sit at a bound of each parameter, and why."""
+    lo, hi = problem.bounds()
+    k, n = problem.n_free, problem.n
+    out: dict[str, Any] = {}
+    for g, p in enumerate(problem.per_touch):
+        cols = slice(k + g * n, k + (g + 1) * n)
+        span = hi[cols] - lo[cols]
+        low = int(np.sum(free[cols] - lo[cols] < 1e-3 * span))
+        high = int(np.sum(hi[cols] - free[cols] < 1e-3 * span))
+        out[p.name] = {"bounds": [p.lo, p.hi], "meaning": p.doc, "touches_at_lower": low, "touches_at_upper": high}
+        if low or high:
+            out[p.name]["why_at_bound"] = (
+                "a touch whose curve hardly depends on it (a wood at the sensor's own temperature barely "
+                "depends on its contact) drifts to the bound; its prior keeps the rest near the shared value"
+                if "conductance" in p.name
+                else "the touch's curve asks for a contact further from the shared one than the bound allows: "
+                "the model lacks something at the press (see the residual)"
+            )
+    return out
