@@ -14,6 +14,8 @@ from synth.sensors.thermal import make_simulator
 from tactile_learn.calibration.thermal_calibration import calibrate_channels, noise_levels, prepare_touches
 from tests.tactile_learn.test_thermal_real import robot_scene
 
+pytestmark = pytest.mark.slow  # a 4-touch calibration: ~25 s of CPU
+
 
 @pytest.fixture(scope="module")
 def fitted() -> tuple[dict[str, Any], np.ndarray]:
