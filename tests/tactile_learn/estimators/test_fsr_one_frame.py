@@ -156,3 +156,11 @@ def test_the_checks_forward_model_is_the_films() -> None:
     assert (distance > transfer.d_grid[-1]).any() and (distance < 2.0).any()
     np.testing.assert_array_equal(check.conductance(params), want)
     np.testing.assert_array_equal(check.conductance(params[:1]), want[:1])
+
+
+def test_codes_outside_the_table_take_the_batch_inverse() -> None:
+    """predict_checked trusts its caller; a code beyond the ADC's range still gets the batch
+    path's answer rather than an index error."""
+    est = TriangulationEstimator(SCENE).prepare()
+    frame = np.array([[5000.0, 10.0, 0.0, 700.0, 650.0, 300.0]], dtype=np.float32)
+    np.testing.assert_allclose(est.predict_checked(frame), est.predict_batch(frame), rtol=1e-6, atol=1e-5)
