@@ -37,13 +37,13 @@ from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
 from synth.scene import Scene, load_scene
 from tactile_learn.checkpoints import MODEL, load_torch, save_torch
-from tactile_learn.distillation import PART_KEY, Teacher
 from tactile_learn.distributed import TrainStep, broadcast, join_world, mean_over_ranks
 from tactile_learn.progress import progress_bar
 from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
 from tactile_learn.torch_estimator import TorchEstimator
+from tactile_learn.train_distillation import PART_KEY, Teacher
 from tactile_learn.training_sets import TrainingSet
 
 __all__ = ["TrainConfig", "train"]
@@ -75,7 +75,7 @@ class TrainConfig:
     shard_size: int = 8192
     fresh: bool = True  # a new ``stream`` samples every epoch (False: the same ones, as a dataset)
     stream_pixels: int = 0  # thermal: simulate only this many random pixels per touch (0: all)
-    # distillation (tactile_learn.distillation): these weights' outputs are the targets of the frames
+    # distillation (tactile_learn.train_distillation): these weights' outputs are the targets of the frames
     # of the ``teacher_data`` folders (each one of ``data``), blended with the truth at ``teacher_weight``
     teacher: str | None = None
     teacher_data: tuple[str, ...] = ()
@@ -218,7 +218,7 @@ class _Run:
     optimizer: Any = None
     scheduler: Any = None
     step_module: torch.nn.Module | None = None  # the DDP wrapper when more than one process trains
-    teacher: Teacher | None = None  # distillation's teacher (tactile_learn.distillation)
+    teacher: Teacher | None = None  # distillation's teacher (tactile_learn.train_distillation)
     batches_per_epoch: int = 0
     state: dict[str, Any] = field(default_factory=dict)
 

@@ -14,9 +14,9 @@ from synth.dataset import generate
 from synth.errors import ConfigError
 from synth.scene import load_scene
 from tactile_learn.cli import main
-from tactile_learn.distillation import PART_KEY, Teacher
 from tactile_learn.tasks import get_task
 from tactile_learn.train import TrainConfig
+from tactile_learn.train_distillation import PART_KEY, Teacher
 from tactile_learn.training_sets import TrainingSet
 
 
