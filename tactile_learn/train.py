@@ -43,6 +43,7 @@ from tactile_learn.stream import TouchStream
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData, Task, readable_frames
 from tactile_learn.torch_estimator import TorchEstimator
+from tactile_learn.train_distillation import PART_KEY, Teacher
 from tactile_learn.training_sets import TrainingSet
 
 __all__ = ["TrainConfig", "train"]
@@ -74,6 +75,11 @@ class TrainConfig:
     shard_size: int = 8192
     fresh: bool = True  # a new ``stream`` samples every epoch (False: the same ones, as a dataset)
     stream_pixels: int = 0  # thermal: simulate only this many random pixels per touch (0: all)
+    # distillation (tactile_learn.train_distillation): these weights' outputs are the targets of the frames
+    # of the ``teacher_data`` folders (each one of ``data``), blended with the truth at ``teacher_weight``
+    teacher: str | None = None
+    teacher_data: tuple[str, ...] = ()
+    teacher_weight: float = 1.0
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -94,6 +100,29 @@ class TrainConfig:
             raise ConfigError("--stream N needs --scene (the scene to simulate), and --scene needs --stream")
         if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
             raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
+        self._validate_teacher()
+
+    def _validate_teacher(self) -> None:
+        if not self.teacher:
+            if self.teacher_data:
+                raise ConfigError("--teacher-data needs --teacher (the network that teaches those folders)")
+            return
+        if self.stream:
+            raise ConfigError("--teacher: distillation reads datasets (--data), not a --stream")
+        folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
+        strange = [f for f in self.teacher_data if f not in folders]
+        if not self.teacher_data or strange:
+            raise ConfigError(
+                f"--teacher-data: name one or more of the --data folders ({', '.join(folders)})"
+                + (f"; not one of them: {', '.join(strange)}" if strange else "")
+            )
+        if not (0.0 < self.teacher_weight <= 1.0):
+            raise ConfigError(f"--teacher-weight: {self.teacher_weight} is out of range (0, 1]")
+
+    def taught_parts(self) -> list[int]:
+        """Indices (in ``data``'s order) of the folders the teacher teaches: a folder given twice is taught twice."""
+        folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
+        return [i for i, f in enumerate(folders) if f in self.teacher_data]
 
 
 def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tuple[EvalData, float]:
@@ -189,6 +218,7 @@ class _Run:
     optimizer: Any = None
     scheduler: Any = None
     step_module: torch.nn.Module | None = None  # the DDP wrapper when more than one process trains
+    teacher: Teacher | None = None  # distillation's teacher (tactile_learn.train_distillation)
     batches_per_epoch: int = 0
     state: dict[str, Any] = field(default_factory=dict)
 
@@ -306,6 +336,8 @@ def _build_model(run: _Run) -> None:
         # equal shards: the mean of the ranks' gradients is then the whole batch's gradient
         raise ConfigError(f"--batch-size: {config.batch_size} does not split into {run.world} equal shards (processes)")
     run.batches_per_epoch = batches_per_epoch
+    if config.teacher:
+        run.teacher = Teacher(config.teacher, scene, config.taught_parts(), config.teacher_weight)
     run.scheduler = torch.optim.lr_scheduler.OneCycleLR(
         run.optimizer, max_lr=config.lr, total_steps=run.epochs * batches_per_epoch, pct_start=0.15
     )
@@ -345,7 +377,7 @@ def _resume_state(run: _Run) -> dict[str, Any]:
 
 def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
     """One epoch's optimiser steps; the batch losses."""
-    config, task, scene, net = run.config, run.task, run.scene, run.net
+    config, task, net = run.config, run.task, run.net
     assert net is not None
     rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(epoch,)))
     net.train()
@@ -354,19 +386,22 @@ def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
         if isinstance(run.train_set, TouchStream):
             batches = run.train_set.epoch_batches(epoch, run.keys, config.batch_size, rng, drop_last=True)
         else:
-            batches = run.train_set.iter_batches(run.keys, config.batch_size, rng=rng, drop_last=True)
+            part_key = PART_KEY if run.teacher is not None else None  # each frame's folder, for the teacher
+            batches = run.train_set.iter_batches(
+                run.keys, config.batch_size, rng=rng, drop_last=True, part_key=part_key
+            )
         for i, arrays in enumerate(batches):
             if i >= run.batches_per_epoch:
                 break
             if run.step_module is not None:
                 # every rank draws the whole batch and its augmentation from the same random
                 # stream (as one process would), then trains on its own shard of the frames
-                x, targets = task.training_batch(arrays, scene, rng)
+                x, targets = _batch(run, arrays, rng)
                 x, targets = x[run.rank :: run.world], {k: v[run.rank :: run.world] for k, v in targets.items()}
                 output = run.step_module(torch.from_numpy(np.ascontiguousarray(x)))
                 targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
             else:
-                x, targets = task.training_batch(arrays, scene, rng)
+                x, targets = _batch(run, arrays, rng)
                 output = task.train_forward(net, torch.from_numpy(x))
             loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
             if not torch.isfinite(loss):
@@ -381,6 +416,18 @@ def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
             if i % 20 == 0:
                 bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
     return losses
+
+
+def _batch(
+    run: _Run, arrays: dict[str, np.ndarray], rng: np.random.Generator
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The task's augmented inputs and targets; with a teacher, its maps on the taught frames."""
+    part = arrays.pop(PART_KEY, None)
+    x, targets = run.task.training_batch(arrays, run.scene, rng)
+    if run.teacher is not None and part is not None:
+        key = run.task.output_key
+        targets = {**targets, key: run.teacher.targets(x, targets[key], part)}
+    return x, targets
 
 
 def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progress: bool | None) -> None:

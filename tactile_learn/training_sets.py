@@ -55,11 +55,21 @@ class TrainingSet:
         return {k: np.concatenate([g[k] for g in got]) for k in keys}
 
     def iter_batches(
-        self, keys: Sequence[str], batch_size: int, rng: np.random.Generator, drop_last: bool = True
+        self,
+        keys: Sequence[str],
+        batch_size: int,
+        rng: np.random.Generator,
+        drop_last: bool = True,
+        part_key: str | None = None,
     ) -> Iterator[dict[str, np.ndarray]]:
-        """Shuffled batches, one shard in memory at a time, shards of all folders interleaved."""
+        """Shuffled batches, one shard in memory at a time, shards of all folders interleaved; with
+        ``part_key``, each batch also holds every frame's folder index under that key (the random
+        stream is the same with or without it)."""
         if len(self.parts) == 1:  # exactly the single dataset's stream: runs from before stay reproducible
-            yield from self.parts[0].iter_batches(keys, batch_size, rng=rng, drop_last=drop_last)
+            for batch in self.parts[0].iter_batches(keys, batch_size, rng=rng, drop_last=drop_last):
+                if part_key is not None:
+                    batch[part_key] = np.zeros(len(next(iter(batch.values()))), dtype=np.int64)
+                yield batch
             return
         order = [(i, s) for i, p in enumerate(self.parts) for s in range(len(p.shards))]
         for k in rng.permutation(len(order)):
@@ -73,4 +83,7 @@ class TrainingSet:
                 if drop_last and len(sel) < batch_size:
                     break
                 sel = np.sort(sel)  # sorted gathers read memory maps sequentially
-                yield {key: np.asarray(m[sel]) for key, m in maps.items()}
+                batch = {key: np.asarray(m[sel]) for key, m in maps.items()}
+                if part_key is not None:
+                    batch[part_key] = np.full(len(sel), part_index, dtype=np.int64)
+                yield batch

@@ -73,6 +73,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--init", default=None, help="start from the weights of a finished run (RUN) or a model's NAME.pt (fine-tuning)"
     )
+    parser.add_argument(
+        "--teacher",
+        default=None,
+        help="distillation: a finished run (RUN) or a model's NAME.pt whose maps are the targets of --teacher-data",
+    )
+    parser.add_argument(
+        "--teacher-data", nargs="+", default=[], help="the --data folders the teacher teaches (the others: the truth)"
+    )
+    parser.add_argument(
+        "--teacher-weight", type=float, default=1.0, help="target = w * teacher + (1 - w) * truth (default 1)"
+    )
     parser.add_argument("--quiet", action="store_true")
 
 
@@ -100,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
         shard_size=args.shard_size,
         fresh=not args.repeat,
         stream_pixels=args.stream_pixels,
+        teacher=args.teacher,
+        teacher_data=tuple(args.teacher_data),
+        teacher_weight=args.teacher_weight,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports
