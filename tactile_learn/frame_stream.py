@@ -7,7 +7,11 @@ scene, the input shape and the valid range once, checks each batch with two redu
 minimum and maximum against the range: NaN and inf fail too) and calls the estimator's
 ``predict_checked``. Anything unusual (another dtype or shape, a value out of range, a task whose
 check does more than check) goes through the task's full ``check_inputs``, so bad input gets the
-same clear :class:`~synth.errors.InputError` as ``predict`` gives.
+same clear :class:`~synth.errors.InputError` as ``predict`` gives. A learned model's single frames
+(without a gate) go through an io binding the stream owns
+(:meth:`~tactile_learn.runtime.OnnxEstimator.frame_runner`: the frame copied into a bound input, no
+per-call dicts or allocations inside onnxruntime); a classical method's through its own
+single-frame path (set up in ``prepare``: see each method's docstring).
 
 With ``gate=True`` (or an :class:`~tactile_learn.idle.IdleGate`) the stream also skips idle frames:
 frames within the sensor's noise floor at rest (the model card's ``idle`` entry; for a classical
@@ -88,6 +92,9 @@ class FrameStream:
         fast = "predict_proba_checked" if estimator.is_classifier else "predict_checked"
         compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, fast)
         self._compute = compute
+        # a learned model's single frames through an io binding owned by this stream
+        runner = getattr(estimator, "frame_runner", None)
+        self._compute_one: Callable[[np.ndarray], np.ndarray] | None = runner() if runner is not None else None
         self.frames = 0
         self.skipped = 0
 
@@ -114,6 +121,8 @@ class FrameStream:
         x = self.check(frames)
         n = len(x)
         self.frames += n
+        if n == 1 and self.gate is None and self._compute_one is not None:
+            return self._compute_one(x)
         if self.gate is None or not n:
             return self._compute(x)
         active = self.gate.active(x)
