@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 PKGS   := synth tactile_learn
 LINTED := synth tactile_learn tests scripts
 
-.PHONY: demo test lint stress bench models clean
+.PHONY: demo test lint stress bench bench-speed models clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,16 @@ stress: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/tactile-learn bench --task all --reference --json results/bench.json --plot results/bench.png
+
+# Issue 15's figures from one run: simulator speed, per-frame overhead, gating, large skins, the
+# strips Pareto front (about 25 minutes on 2 cores); results/speed.md checks every floor.
+bench-speed: $(STAMP)
+	test -d data/strips16-test || $(BIN)/tactile-learn generate --scene strips16 --n 4000 --seed 3 --out data/strips16-test --quiet
+	$(BIN)/python scripts/thermal_sim_speed.py --scene thermal --scene thermal_wns --json results/thermal_sim_speed.json
+	$(BIN)/python scripts/latency_overhead.py --rounds 15 --per-round 20 --json results/latency_overhead.json
+	$(BIN)/python scripts/strips_pareto.py --models models/strips16.onnx models/strips16_small.onnx \
+		models/strips16_spheres.onnx --json results/strips_pareto.json
+	$(BIN)/python scripts/speed_report.py --out results/speed.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
