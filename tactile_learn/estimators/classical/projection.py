@@ -115,9 +115,13 @@ class ProjectionEstimator(Estimator):
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         m: dict[str, Any] = self.prepared_state("model_")
         sensor: StripSensor = m["sensor"]
-        start = m["start"].predict_checked(readings)
+        intersection: IntersectionEstimator = m["start"]
+        start = intersection.predict_checked(readings)
         b, n, mm = start.shape
-        measured = channel_loads(sensor, readings, self.noise_floor, m["start"].load_floor_)
+        if b == 1 and intersection.frame_loads_ is not None:
+            # the same loads as channel_loads, through the single-frame arithmetic
+            return self._one_frame(start, intersection.frame_loads_(readings[0]))
+        measured = channel_loads(sensor, readings, self.noise_floor, intersection.load_floor_)
         if b == 1:
             return self._one_frame(start, measured[0])
         noise = m["noise"]
