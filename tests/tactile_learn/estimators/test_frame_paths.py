@@ -18,6 +18,7 @@ from tactile_learn.frame_stream import FrameStream
 from tactile_learn.tasks import get_task
 from tactile_learn.thermal_frame import detect_onset_one, drop_segment_one
 from tactile_learn.thermal_signal import detect_onset, drop_segments
+from tests.conftest import tiny_strips_scene
 
 SCENES = {"strips": "strips16", "capacitive": "capacitive8", "thermal": "thermal"}
 
@@ -80,6 +81,20 @@ def test_projection_single_frames_equal_the_batch_within_float32_rounding() -> N
     assert np.median(relative_error(single, whole)) < 2e-5
     # cells the start leaves dark stay dark on both paths
     np.testing.assert_array_equal(single > 0, whole > 0)
+
+
+@pytest.mark.parametrize("layout", ["two_ended", "diagonal"])
+def test_projection_single_frames_of_other_layouts_equal_the_batch(layout: str) -> None:
+    data = tiny_strips_scene(count=[1, 2]).to_dict()
+    data["strips"]["geometry"]["layout"] = layout
+    scene = parse_scene(data, layout)
+    est = method("strips", "projection", scene)
+    readings = sensor_module("strips").make_simulator(scene).simulate(30, np.random.default_rng(4))["readings"]
+    readings = np.ascontiguousarray(readings, dtype=np.float32)
+    readings = readings[readings.max(axis=1) < scene.sensor.readout.full_scale_v]  # saturated frames are refused
+    whole = batch(est, readings)
+    assert len(readings) > 20 and (whole.reshape(len(whole), -1).max(axis=1) > 0).mean() > 0.5
+    assert relative_error(one_by_one(est, readings), whole).max() < 2e-4
 
 
 def test_projection_single_idle_frame_is_zero() -> None:
