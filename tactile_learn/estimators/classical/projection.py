@@ -163,11 +163,13 @@ class ProjectionEstimator(Estimator):
         g = m["stacked"][lit]  # (lit, L N M): the rows of the lit cells
         g_t = np.ascontiguousarray(g.T)
         sides = np.empty((2, w.shape[1]), dtype=np.float32)
-        np.matmul(measured.astype(np.float32), w, out=sides[0])  # J^T's numerator side, fixed per frame
+        weighted = np.empty_like(sides)
+        # np.dot: a vector times a matrix without matmul's generalised-ufunc set-up (2 us a call here)
+        np.dot(measured.astype(np.float32), w, out=sides[0])  # J^T's numerator side, fixed per frame
         x = flat[lit].astype(np.float64)
         ratio = np.empty(len(lit), dtype=np.float32)
         for _ in range(self.max_iter):
-            stress = x.astype(np.float32) @ g
+            stress = np.dot(x.astype(np.float32), g)
             np.maximum(stress, 0.0, out=stress)
             # the law's conductance_gain and its derivative, as _loads computes them
             stress /= p0
@@ -175,21 +177,21 @@ class ProjectionEstimator(Estimator):
             f *= -exponent
             np.expm1(f, out=f)
             np.negative(f, out=f)
-            model = f @ w_t
+            model = np.dot(f, w_t)
             misfit = (model - measured) * inv_noise
-            if not math.sqrt(float(misfit @ misfit) / len(misfit)) > self.tau:
+            if not math.sqrt(float(np.dot(misfit, misfit)) / len(misfit)) > self.tau:
                 break  # the discrepancy principle is met: keep the current map
             d = np.subtract(1.0, f, dtype=np.float32)
             d **= power
             d *= exponent / p0
-            np.matmul(model, w, out=sides[1])
-            numerator, denominator = (sides * d) @ g_t
+            np.dot(model, w, out=sides[1])
+            numerator, denominator = np.dot(np.multiply(sides, d, out=weighted), g_t)
             # 0/0 where a cell has no sensitivity left: keep its value
             ratio.fill(1.0)
             np.divide(numerator, denominator, out=ratio, where=denominator > 1e-30)
             updated = x * ratio
             step = updated - x
-            if not math.sqrt(float(step @ step)) > self.rel_tol * max(math.sqrt(float(x @ x)), 1e-30):
+            if not math.sqrt(float(np.dot(step, step))) > self.rel_tol * max(math.sqrt(float(np.dot(x, x))), 1e-30):
                 break  # the map has settled
             x = updated
         out = np.zeros_like(flat)
