@@ -41,6 +41,7 @@ from synth.errors import ModelError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.idle import IdleGate, measure_idle_floor
+from tactile_learn.stream_one_frame import OneFrameGate
 from tactile_learn.tasks import get_task
 
 __all__ = ["FrameStream", "card_gate"]
@@ -93,10 +94,14 @@ class FrameStream:
         compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, fast)
         self._compute = compute
         # a learned model's single frames through an io binding owned by this stream
-        runner = getattr(estimator, "frame_runner", None)
+        # (only ungated: a gated stream sends its active frames through predict_checked, which the
+        # gate's tests watch; its saving is the skipped frames)
+        runner = getattr(estimator, "frame_runner", None) if self.gate is None else None
         self._compute_one: Callable[[np.ndarray], np.ndarray] | None = runner() if runner is not None else None
         self.frames = 0
         self.skipped = 0
+        # a batch of one small frame: check and gate on Python floats (tactile_learn.stream_one_frame)
+        self._one_frame = OneFrameGate.build(self.shape, self.bounds, self.gate)
 
     def check(self, frames: Any) -> np.ndarray:
         """``frames`` as the validated float32 batch ``predict`` would see (or an InputError)."""
@@ -118,10 +123,25 @@ class FrameStream:
 
     def predict(self, frames: Any) -> np.ndarray:
         """The estimator's prediction for ``frames`` (batch first); idle frames answered by the gate."""
+        one = self._one_frame
+        if (
+            one is not None
+            and type(frames) is np.ndarray
+            and frames.shape == one.batch_shape
+            and frames.dtype == np.float32
+            and frames.flags.c_contiguous
+        ):
+            verdict = one.verdict(frames)
+            if verdict is not None:  # a valid frame (else the full check below gives its error)
+                self.frames += 1
+                if verdict:
+                    return (self._compute_one or self._compute)(frames)
+                self.skipped += 1
+                return self.task.empty_prediction(1, self.scene)
         x = self.check(frames)
         n = len(x)
         self.frames += n
-        if n == 1 and self.gate is None and self._compute_one is not None:
+        if n == 1 and self._compute_one is not None:
             return self._compute_one(x)
         if self.gate is None or not n:
             return self._compute(x)

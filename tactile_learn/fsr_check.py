@@ -32,6 +32,7 @@ import numpy as np
 
 from synth.scene import Scene
 from synth.sensors import fsr
+from tactile_learn.fsr_one_frame import OneFrameCheck
 
 __all__ = ["DEFAULT_THRESHOLD", "OnePressCheck", "one_press_check", "with_one_press"]
 
@@ -55,7 +56,10 @@ def with_one_press(
         return prediction
     out = np.empty((len(prediction), 6), dtype=np.float32)
     out[:, :-1] = prediction
-    if len(prediction):
+    if len(prediction) == 1:  # a single frame (a stream): the check on Python floats
+        one = (check or one_press_check(scene)).one_frame
+        out[0, -1] = one.p_one_press(inputs[0].tolist(), prediction[0].tolist())
+    elif len(prediction):
         out[:, -1] = (check or one_press_check(scene)).p_one_press(inputs, prediction)
     else:
         out[:, -1] = 0.0
@@ -96,7 +100,13 @@ class OnePressCheck:
         """Build the film model and load path now rather than on the first check."""
         self._model  # noqa: B018 - cached_property: built here, once
         self._path  # noqa: B018
+        self.one_frame  # noqa: B018
         return self
+
+    @cached_property
+    def one_frame(self) -> OneFrameCheck:
+        """The same check for a single frame on Python floats (:mod:`tactile_learn.fsr_one_frame`)."""
+        return OneFrameCheck(self)
 
     @cached_property
     def _model(self) -> tuple[fsr.FsrConfig, fsr.FsrLaw, fsr.Readout, float]:
@@ -137,18 +147,30 @@ class OnePressCheck:
         starts = [np.column_stack([estimate[:, 0], estimate[:, 1], log_force]), np.column_stack([centroid, log_force])]
         return np.asarray(np.minimum(*(self._refined_misfit(measured, s.astype(np.float64)) for s in starts)))
 
-    def _refined_misfit(self, measured: np.ndarray, params: np.ndarray, stop_below: float | None = None) -> np.ndarray:
+    def _refined_misfit(
+        self,
+        measured: np.ndarray,
+        params: np.ndarray,
+        stop_below: float | None = None,
+        partner: np.ndarray | None = None,
+    ) -> np.ndarray:
         """RMS misfit after Levenberg-Marquardt steps from ``params`` (damping per frame: shrunk after
         a step that lowers the misfit, grown after one that does not, which is then undone).
 
         ``stop_below``: frames whose misfit is at or below it are not stepped further (a step only
         ever lowers the misfit, so their verdict against that threshold is final); the loop ends
-        early once every frame is there. Their returned misfit is then the one at that point."""
+        early once every frame is there. Their returned misfit is then the one at that point.
+
+        ``partner`` (with ``stop_below``): row ``i`` and row ``partner[i]`` are two starts of one
+        frame, which passes if either does: once one is at or below ``stop_below`` the other is not
+        stepped further either (the frame's verdict is decided; only the better misfit counts)."""
         base = self.conductance(params)
         cost = np.sum((measured - base) ** 2, axis=1)
         misfit = self._misfit(measured, base)
         damping = np.full(len(params), 1e-3)
         live = np.arange(len(params)) if stop_below is None else np.flatnonzero(misfit > stop_below)
+        if partner is not None and stop_below is not None:
+            live = live[misfit[partner[live]] > stop_below]
         for _ in range(self.steps):
             if not live.size:
                 break
@@ -172,6 +194,8 @@ class OnePressCheck:
             if stop_below is not None:
                 misfit[live] = self._misfit(y, base[live])
                 live = live[misfit[live] > stop_below]
+                if partner is not None:
+                    live = live[misfit[partner[live]] > stop_below]
         return self._misfit(measured, base)
 
     def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
@@ -203,8 +227,12 @@ class OnePressCheck:
             centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
             second = np.column_stack([centroid, log_force[doubt]])
             if doubt.size <= JOINT_STARTS_MAX:  # few frames (a stream): both starts in one pass
+                n = doubt.size  # row i and row i + n: the two starts of one frame
                 both = self._refined_misfit(
-                    np.concatenate([measured[doubt]] * 2), np.concatenate([start[doubt], second]), self.threshold
+                    np.concatenate([measured[doubt]] * 2),
+                    np.concatenate([start[doubt], second]),
+                    self.threshold,
+                    partner=np.concatenate([np.arange(n, 2 * n), np.arange(n)]),
                 )
                 passed[doubt] = (both <= self.threshold).reshape(2, -1).any(axis=0)
             else:

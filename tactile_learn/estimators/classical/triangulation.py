@@ -56,7 +56,8 @@ from scipy import optimize
 from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.fsr_check import one_press_check, with_one_press
+from tactile_learn.estimators.classical.triangulation_one_frame import OneFrameTriangulation
+from tactile_learn.fsr_check import one_press_check
 from tactile_learn.validation.fsr import fsr_check
 
 __all__ = [
@@ -375,17 +376,60 @@ class TriangulationEstimator(Estimator):
             self.simulator_.loads_from_readings(np.zeros((1, fsr.N_SENSORS), dtype=np.float32))
             self.check_ = one_press_check(self.scene).prepare()
             self.input_check_ = fsr_check(self.scene.sensor)
+            # the single-frame path: every ADC code's disc load by the batch inverse, once
+            levels = fsr.Readout(self.scene.sensor.readout).full_scale + 1
+            self.one_frame_ = OneFrameTriangulation(
+                _geometry(self.scene.sensor.layout),
+                model,
+                self._threshold(),
+                self.fallback_fraction,
+                self.inside_tol_mm,
+                self.simulator_.loads_from_readings(np.arange(levels, dtype=np.float64)),
+                self.simulator_.loads_from_readings,
+            )
+            # (low, high, strict) of a frame that passes the input check unchanged; None for a
+            # calibrated film (its readings are mapped): such frames take the batch path
+            self.frame_bounds_ = self.input_check_.bounds()
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
+        one = self.prepared_state("one_frame_")
+        bounds = self.frame_bounds_
+        if type(X) is np.ndarray and X.shape == (1, fsr.N_SENSORS) and X.dtype == np.float32 and bounds is not None:
+            # one frame (a stream): the input check on its six floats (a NaN fails every
+            # comparison); anything unusual goes through the full check and its clear error
+            codes = X[0].tolist()
+            low, high, strict = bounds
+            if all((low < c if strict else low <= c) and c < high for c in codes):
+                return self._predict_frame(one, codes)
         return self.predict_checked(self.prepared_state("input_check_")(X))
 
+    def _predict_frame(self, one: OneFrameTriangulation, codes: list[float]) -> np.ndarray:
+        """(1, 6) for one checked frame of nominal-film codes, on Python floats."""
+        estimate = one.estimate(codes)
+        if not estimate[3]:  # no contact: every column 0
+            return np.zeros((1, 6), dtype=np.float32)
+        out = np.array([[*estimate, 0.0]], dtype=np.float32)
+        # the check reads the float32 estimate, as in the batch path
+        out[0, 5] = self.check_.one_frame.p_one_press(codes, out[0, :5].tolist())
+        return out
+
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
+        if len(readings) == 1:
+            return self._predict_frame(self.prepared_state("one_frame_"), readings[0].tolist())
+        return self.predict_batch(readings)
+
+    def predict_batch(self, readings: np.ndarray) -> np.ndarray:
+        """The vectorised path for checked nominal-film readings (B, 6), any B (``predict`` takes
+        it from two frames up; the single-frame path gives the same results)."""
         model: LoadModel = self.prepared_state("model_")
         config: fsr.FsrConfig = self.scene.sensor
         loads = self.simulator_.loads_from_readings(readings)
         out, _ = triangulate(loads, config, model, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
-        return with_one_press(readings, out.astype(np.float32), self.scene, self.check_)
+        result = np.empty((len(out), 6), dtype=np.float32)
+        result[:, :5] = out
+        result[:, 5] = self.check_.p_one_press(readings, result[:, :5])  # reads the float32 estimate
+        return result
 
 
 class FittedTriangulationEstimator(TriangulationEstimator):

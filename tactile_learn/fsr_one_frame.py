@@ -1,0 +1,211 @@
+"""The one-press check (:mod:`tactile_learn.fsr_check`) on a single frame, in plain Python floats.
+
+At batch 1 the check's numpy arithmetic works on arrays of six (or eighteen) numbers, where every
+numpy call costs a microsecond or so of fixed overhead: the forward model alone is some twenty
+calls, and a Levenberg-Marquardt step three of them. A light press that needs refining then cost
+~1-2 ms per frame. :class:`OneFrameCheck` does the same arithmetic on Python floats with the
+film's tables as lists, built once per check: the same forward model (distance, Hertz radius,
+bilinear lookup of the load path, far-field point-load formula, the FSR law), the same
+finite-difference Jacobian, damping schedule, step limits and early stop, so the verdicts equal
+the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination instead of LAPACK).
+"""
+
+from __future__ import annotations
+
+import math
+from operator import mul, sub
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from tactile_learn.fsr_check import OnePressCheck
+
+__all__ = ["OneFrameCheck", "expit"]
+
+_FD_STEP = (0.05, 0.05, 0.01)  # as fsr_check._FD_STEP: mm, mm, log N
+_STEP_LIMIT = (5.0, 5.0, 1.0)  # as fsr_check._STEP_LO/_STEP_HI: a step's largest move
+_FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force at 1e-3 (N)
+
+
+def expit(z: float) -> float:
+    """The logistic function as scipy computes it, ``1 / (1 + exp(-z))``; where ``exp(-z)``
+    overflows (``math.exp`` raises, numpy gives inf) the result is 0, as numpy's."""
+    try:
+        return 1.0 / (1.0 + math.exp(-z))
+    except OverflowError:
+        return 0.0
+
+
+def _solve_spd3(
+    a00: float, a01: float, a02: float, a11: float, a12: float, a22: float, b0: float, b1: float, b2: float
+) -> tuple[float, float, float]:
+    """``A x = b`` for a symmetric positive definite 3 x 3 ``A`` (the damped normal equations:
+    ``J^T J`` plus a positive ridge), by elimination without pivoting (stable for such matrices);
+    a zero pivot (no information at all) gives no step."""
+    if a00 == 0.0:
+        return 0.0, 0.0, 0.0
+    m1, m2 = a01 / a00, a02 / a00
+    c11, c12, d1 = a11 - m1 * a01, a12 - m1 * a02, b1 - m1 * b0
+    c21, c22, d2 = a12 - m2 * a01, a22 - m2 * a02, b2 - m2 * b0
+    if c11 == 0.0:
+        return 0.0, 0.0, 0.0
+    m3 = c21 / c11
+    e22, f2 = c22 - m3 * c12, d2 - m3 * d1
+    if e22 == 0.0:
+        return 0.0, 0.0, 0.0
+    x2 = f2 / e22
+    x1 = (d1 - c12 * x2) / c11
+    return (b0 - a01 * x1 - a02 * x2) / a00, x1, x2
+
+
+class OneFrameCheck:
+    """:class:`~tactile_learn.fsr_check.OnePressCheck`'s arithmetic for one frame (module docstring)."""
+
+    def __init__(self, check: OnePressCheck) -> None:
+        config, _, readout, tip = check._model
+        transfer, positions = check._path
+        self.threshold = float(check.threshold)
+        self.steps = int(check.steps)
+        self.floor_us = float(check.floor_us)
+        self.positions = [(float(x), float(y)) for x, y in positions]
+        lay, el = config.layout, config.element
+        e_star = lay.youngs_modulus_mpa / (1.0 - lay.poisson**2)  # as fsr.hertz_radius_mm
+        self.tip, self.e_star = float(tip), float(e_star)
+        dg, ag = transfer.d_grid, transfer.a_grid
+        self.d0, self.dd, self.d_top = float(dg[0]), float(dg[1] - dg[0]), float(len(dg) - 1.000001)
+        self.a0, self.da, self.a_top = float(ag[0]), float(ag[1] - ag[0]), float(len(ag) - 1.000001)
+        self.d_max = float(dg[-1])
+        self.table = transfer.table.tolist()
+        self.transfer = transfer
+        self.leak, self.per_n = float(el.leak_conductance_us), float(el.conductance_us_per_n)
+        self.break_n, self.width_n, self.sat_n = (
+            float(el.break_force_n),
+            float(el.break_width_n),
+            float(el.saturation_force_n),
+        )
+        levels = 2**readout.config.adc_bits
+        # the readout inverse of every code, by the batch path's own function (bit for bit)
+        self.code_conductance = readout.conductance_us(np.arange(levels, dtype=np.float64)).tolist()
+        self.readout = readout
+
+    # ---- the forward model ----------------------------------------------------------------------
+
+    def conductance(self, x: float, y: float, log_force: float) -> list[float]:
+        """Modelled conductances (uS) of the six sensors for a press at ``x, y`` with ``log_force``
+        (:meth:`OnePressCheck.conductance`; the same operations in the same order, written out
+        with local names: this is the check's inner loop)."""
+        exp, tanh = math.exp, math.tanh
+        force = exp(-10.0 if log_force < -10.0 else 6.0 if log_force > 6.0 else log_force)  # as the batch clip
+        radius = (3.0 * force * self.tip / (4.0 * self.e_star)) ** (1.0 / 3.0)  # fsr.hertz_radius_mm
+        ai = (radius - self.a0) / self.da
+        ai = 0.0 if ai < 0.0 else self.a_top if ai > self.a_top else ai
+        j0 = int(ai)
+        fj = ai - j0
+        j1, gj = j0 + 1, 1 - fj
+        table, d0, dd, d_top, d_max = self.table, self.d0, self.dd, self.d_top, self.d_max
+        leak, per_n, brk, width, sat = self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
+        out = []
+        for px, py in self.positions:
+            dx, dy = x - px, y - py
+            d = math.sqrt(dx * dx + dy * dy)
+            if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
+                per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
+            else:
+                di = (d - d0) / dd
+                di = 0.0 if di < 0.0 else d_top if di > d_top else di
+                i0 = int(di)
+                fi = di - i0
+                gi = 1 - fi
+                row, nxt = table[i0], table[i0 + 1]
+                per_newton = row[j0] * gi * gj + nxt[j0] * fi * gj + row[j1] * gi * fj + nxt[j1] * fi * fj
+            load = per_newton * force
+            if load < 0.0:
+                load = 0.0
+            z = (load - brk) / width
+            gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+            out.append(leak + per_n * (sat * tanh(load * gate / sat)))
+        return out
+
+    def measured(self, codes: list[float]) -> list[float]:
+        """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
+        if all(c.is_integer() for c in codes):
+            table = self.code_conductance
+            return [table[int(c)] for c in codes]
+        return [float(g) for g in self.readout.conductance_us(np.array(codes))]  # e.g. a calibrated film's
+
+    def _scale(self, measured: list[float]) -> float:
+        """The misfit's denominator: RMS measured conductance plus the floor."""
+        return math.sqrt(sum(map(mul, measured, measured)) / len(measured)) + self.floor_us
+
+    @staticmethod
+    def _cost(measured: list[float], model: list[float]) -> float:
+        """Summed squared conductance misfit (the batch path's ``cost``)."""
+        resid = list(map(sub, measured, model))
+        return sum(map(mul, resid, resid))
+
+    def misfit(self, measured: list[float], model: list[float]) -> float:
+        """Relative RMS misfit (:meth:`OnePressCheck._misfit`)."""
+        return math.sqrt(self._cost(measured, model) / len(measured)) / self._scale(measured)
+
+    # ---- the check ------------------------------------------------------------------------------
+
+    def refined_misfit(
+        self, measured: list[float], params: list[float], stop_below: float, base: list[float] | None = None
+    ) -> float:
+        """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
+        when the caller has it)."""
+        conductance, n, scale_m = self.conductance, len(measured), self._scale(measured)
+        if base is None:
+            base = conductance(*params)
+        cost = self._cost(measured, base)
+        damping = 1e-3
+        for _ in range(self.steps):
+            if math.sqrt(cost / n) / scale_m <= stop_below:
+                break
+            # Jacobian columns: d conductance / d parameter, by forward differences
+            x, y, f = params
+            j0 = [(s - b) / _FD_STEP[0] for s, b in zip(conductance(x + _FD_STEP[0], y, f), base, strict=True)]
+            j1 = [(s - b) / _FD_STEP[1] for s, b in zip(conductance(x, y + _FD_STEP[1], f), base, strict=True)]
+            j2 = [(s - b) / _FD_STEP[2] for s, b in zip(conductance(x, y, f + _FD_STEP[2]), base, strict=True)]
+            resid = list(map(sub, measured, base))
+            a00, a11, a22 = sum(map(mul, j0, j0)), sum(map(mul, j1, j1)), sum(map(mul, j2, j2))
+            a01, a02, a12 = sum(map(mul, j0, j1)), sum(map(mul, j0, j2)), sum(map(mul, j1, j2))
+            ridge = damping * (a00 + a11 + a22 + 1e-12)
+            delta = _solve_spd3(
+                a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge,
+                sum(map(mul, j0, resid)), sum(map(mul, j1, resid)), sum(map(mul, j2, resid)),
+            )  # fmt: skip
+            candidate = [
+                p + (-lim if s < -lim else lim if s > lim else s)
+                for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)
+            ]
+            trial = conductance(*candidate)
+            trial_cost = self._cost(measured, trial)
+            if trial_cost < cost:
+                params, base, cost, damping = candidate, trial, trial_cost, damping / 3.0
+            else:
+                damping *= 5.0
+        return math.sqrt(cost / n) / scale_m
+
+    def p_one_press(self, codes: list[float], estimate: list[float]) -> float:
+        """The flag of one frame (:meth:`OnePressCheck.p_one_press`): ``codes`` its six nominal-film
+        readings, ``estimate`` its first five columns (cheapest first, as the batch path)."""
+        if not estimate[3] > 0.5:
+            return 0.0
+        if not estimate[4] > 0.5:
+            return 0.5
+        measured = self.measured(codes)
+        # in float32, as the batch path takes the log of the float32 estimate
+        log_force = float(np.log(np.float32(max(estimate[2], _FORCE_FLOOR))))
+        start = [float(estimate[0]), float(estimate[1]), log_force]
+        base = self.conductance(*start)
+        if self.misfit(measured, base) <= self.threshold:
+            return 1.0
+        if self.refined_misfit(measured, start, self.threshold, base) <= self.threshold:
+            return 1.0
+        weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
+        total = sum(weights)
+        cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
+        cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
+        return 1.0 if self.refined_misfit(measured, [cx, cy, log_force], self.threshold) <= self.threshold else 0.0
