@@ -29,6 +29,7 @@ from __future__ import annotations
 from functools import cached_property
 
 import numpy as np
+from scipy import special
 
 from synth.scene import Scene
 from synth.sensors import fsr
@@ -100,6 +101,7 @@ class OnePressCheck:
         """Build the film model and load path now rather than on the first check."""
         self._model  # noqa: B018 - cached_property: built here, once
         self._path  # noqa: B018
+        self._grid  # noqa: B018
         self.one_frame  # noqa: B018
         return self
 
@@ -125,15 +127,58 @@ class OnePressCheck:
         config = self._model[0]
         return fsr.make_transfer(config), fsr.sensor_positions(config.layout)
 
+    @cached_property
+    def _grid(self) -> tuple[np.ndarray, float, float, float, float, float, float, int, float, float]:
+        """The load table flattened, its grid steps and the film's contact modulus: what
+        :meth:`conductance` reads on every call (looked up once)."""
+        config = self._model[0]
+        transfer = self._path[0]
+        dg, ag, table = transfer.d_grid, transfer.a_grid, transfer.table
+        lay = config.layout
+        e_star = lay.youngs_modulus_mpa / (1.0 - lay.poisson**2)  # as fsr.hertz_radius_mm
+        return (
+            table.ravel(),
+            float(dg[0]),
+            float(dg[1] - dg[0]),
+            len(dg) - 1.000001,
+            float(ag[0]),
+            float(ag[1] - ag[0]),
+            len(ag) - 1.000001,
+            table.shape[1],
+            float(dg[-1]),
+            float(e_star),
+        )
+
     def conductance(self, params: np.ndarray) -> np.ndarray:
         """Modelled conductances (B, 6) (uS) of presses ``params`` (B, 3): x, y (mm), log force (N),
-        the round tip of median radius (``fsr.sensor_loads`` with the law, nominal gain)."""
-        config, law, _, tip = self._model
+        the round tip of median radius (``fsr.sensor_loads`` with the law, nominal gain).
+
+        The load path's bilinear lookup (``fsr.Transfer.per_newton``) and the law
+        (``fsr.FsrLaw.conductance_us``) written out with the same operations in the same order (the
+        results are the same bit for bit; a test compares them), with fewer numpy calls: the check
+        calls this a dozen times per batch on a few dozen rows, where each call's fixed cost counts."""
+        config, _, _, tip = self._model
         transfer, positions = self._path
+        flat, d0, d_step, d_top, a0, a_step, a_top, n_a, d_max, e_star = self._grid
+        element = config.element
         force = np.exp(np.clip(params[:, 2], -10.0, 6.0))  # clipped: a diverging step cannot overflow
         distance = np.sqrt(((params[:, None, :2] - positions[None]) ** 2).sum(axis=2))
-        radius = fsr.hertz_radius_mm(force, np.asarray(tip), config.layout)
-        return law.conductance_us(transfer.per_newton(distance, radius[:, None]) * force[:, None], 1.0)
+        radius = np.cbrt(3.0 * np.maximum(force, 0.0) * tip / (4.0 * e_star))[:, None]  # fsr.hertz_radius_mm
+        di = np.clip((distance - d0) / d_step, 0.0, d_top)
+        ai = np.clip((radius - a0) / a_step, 0.0, a_top)
+        i0, j0 = di.astype(np.int64), ai.astype(np.int64)
+        fi, fj = di - i0, ai - j0
+        gi, gj = 1 - fi, 1 - fj
+        k = i0 * n_a + j0
+        per_newton = flat[k] * gi * gj + flat[k + n_a] * fi * gj + flat[k + 1] * gi * fj + flat[k + n_a + 1] * fi * fj
+        far = distance > d_max
+        if far.any():  # beyond the table: the far-field point-load formula (as per_newton)
+            area = np.pi * transfer.disc_radius_mm**2
+            per_newton = np.where(far, area * transfer.point_kernel(distance), per_newton)
+        load = np.maximum(per_newton * force[:, None], 0.0)
+        gate = special.expit((load - element.break_force_n) / element.break_width_n)  # width > 0 (validated)
+        sat = element.saturation_force_n
+        return element.leak_conductance_us + element.conductance_us_per_n * (sat * np.tanh(load * gate / sat))
 
     def residual(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
         """Relative conductance misfit (B,) of the best single press near ``estimate`` (B, >= 3)

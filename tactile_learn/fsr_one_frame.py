@@ -129,7 +129,8 @@ class OneFrameCheck:
 
     def measured(self, codes: list[float]) -> list[float]:
         """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
-        if all(c.is_integer() for c in codes):
+        top = len(self.code_conductance)  # codes a checked frame can hold; others (unchecked) by the batch inverse
+        if all(c.is_integer() and 0 <= c < top for c in codes):
             table = self.code_conductance
             return [table[int(c)] for c in codes]
         return [float(g) for g in self.readout.conductance_us(np.array(codes))]  # e.g. a calibrated film's

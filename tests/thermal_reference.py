@@ -33,14 +33,19 @@ def reference_channel(
     drift_k_s: float = 0.0,
     power_step: float = 0.0,
     power_step_s: float = 0.0,
+    gradient_k_m: float = 0.0,
     cells: int = 300,
 ) -> np.ndarray:
     """Reading deviation from its value at the contact onset, at times ``t`` (s, increasing, > 0).
 
     ``drift_k_s``: before contact the body ramped at this rate under a net heating ``C r`` that goes
     on after it, and the lag states trail the body by their time constants (open loop only);
-    ``power_step`` (W/m^2): the heater's power changes by this much at ``power_step_s`` (>= 0).
+    ``power_step`` (W/m^2): the heater's power changes by this much at ``power_step_s`` (>= 0);
+    ``gradient_k_m``: the object's temperature grows with depth at this rate before contact (a
+    slab only: ``spreading = 0``), held at the far end.
     """
+    if gradient_k_m and spreading > 0:
+        raise ValueError("gradient_k_m needs a slab (spreading = 0)")
     t = np.asarray(t, dtype=np.float64)
     alpha = diffusivity_m2_s
     first = min(np.sqrt(alpha * t.min()) / 40, 0.1 * k_w_mk / conductance)
@@ -102,6 +107,9 @@ def reference_channel(
     # the ramp before contact: a net heating C r goes on; lag state k trails the body by the sum of
     # the time constants up to it (a first-order chain in a steady ramp)
     y0 = np.zeros(n)
+    if gradient_k_m:  # the object's cells start on the line, the far end held on it
+        y0[1 : 1 + cells] = gradient_k_m * centres
+        b[cells] += k_w_mk * area[cells] / (faces[cells] - centres[-1]) / cap[-1] * gradient_k_m * faces[cells]
     b[0] += drift_k_s  # S / C = r
     trail = 0.0
     for j, tau in enumerate(lags):

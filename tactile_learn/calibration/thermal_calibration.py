@@ -25,11 +25,21 @@ and ramp and the time of the heater's power change. Linear, solved exactly insid
 projection): per touch ``R0_c, r_c, T_obj``, and the shared ``T_amb``, with weak priors that keep
 them physical when a channel alone cannot pin them (``T_obj`` within ~25 K of the sensor, drifts of
 a few tenths of K/s). Then every touch is refitted alone for its own contact (a conductance factor,
-lead and ramp): their spread is the touch-to-touch variation a calibrated scene draws from.
+lead and ramp): their spread is the touch-to-touch variation a calibrated scene draws from. Last
+(``touch_contact``), the shared parameters and every touch's own contact are refined together (a
+press is never the same twice: a real user's touches have their own contact; weak priors tie them
+to the shared one, with which they trade off), with a Jacobian that steps all touches' own
+parameters at once (each moves its own touch's rows only). Optional per-touch nuisance terms
+(``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
+object's flux (its temperature not uniform with depth) and the heater's power steps.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
 strays from a smooth spline relative to its slope), so ``sigma(t)^2 = sigma_w^2 + (sigma_t dx/dt)^2``.
+A second unit, ``precontact_k``, is the scatter of the segment before any contact about a quadratic
+trend (the noise's whole per-sample variance, its correlated parts included); the report gives
+both (``rms_sigma``, ``rms_sigma_precontact``), with each touch's own contact (the headline) and with
+one shared contact (``shared_contact``).
 The report gives the fit's residual in those units, every parameter with its bounds, the ones at a
 bound (with the likely reason), and the ones the data do not identify (posterior s.d. above a factor
 of 2, or a correlation above 0.99 with another).
@@ -37,6 +47,7 @@ of 2, or a correlation above 0.99 with another).
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Sequence
@@ -49,7 +60,7 @@ from scipy.interpolate import LSQUnivariateSpline
 
 from synth.errors import DataError
 from synth.materials import Material
-from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
+from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
 
 __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
 
@@ -58,6 +69,11 @@ __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "
 FIT_HZ = 20.0
 #: the fit starts this long before the onset (earlier samples hold the heater's settling)
 PRE_S = 0.3
+#: the contact starts at most this long before the onset
+LEAD_MAX_S = 1.5
+#: the noise's pre-contact segment ends this long before the onset (a press's first touch comes
+#: ~0.3 s before its force's half-plateau crossing on the robot recordings)
+QUIET_BEFORE_S = 0.5
 #: prior s.d. of the object's temperature around the sensor's (K) and of a drift (K/s)
 OBJECT_PRIOR_K = 25.0
 DRIFT_PRIOR_K_S = 0.5
@@ -71,6 +87,15 @@ PRIOR_LINEAR_SD = 1.0
 #: the priors' weight (0: off). Off by default: on the robot recordings they moved the fit to worse
 #: local minima without making two sessions agree (the report lists what the data leave free)
 PRIOR_WEIGHT = 0.0
+#: per-touch nuisance terms the fit may add (see synth.sensors.thermal.dynamics.nuisance_terms)
+NUISANCE_TERMS = ("object_flux", "heater_steps")
+_NUISANCE_DOC = {
+    "object_flux": "the object's flux F = k g (its temperature not uniform with depth: a cooled block warming "
+    "from its surface)",
+    "heater_steps": "the heater's power steps at the contact and at t_off (a controller's response read as steps)",
+}
+#: solver evaluations of the joint refinement (shared + every touch's own contact)
+TOUCH_RUN = 40
 #: solver evaluations of each multi-start's short run
 SHORT_RUN = 15
 
@@ -111,6 +136,17 @@ _CHANNEL_PARAMS = (
 #: the passive channel's heat capacity and contact conductance as ratios to the heated twin's:
 #: (lowest, highest, start)
 _TWIN_RATIOS = {"heat_capacity_j_m2k": (0.1, 10.0, 0.5), "conductance_w_m2k": (0.05, 10.0, 0.5)}
+
+
+#: every touch's own contact (relative to the shared one): log conductance factor, lead offset (s),
+#: log build-up factor; ``hi`` is also the s.d. of its weak prior (in TOUCH_PRIOR_SD units)
+_TOUCH_CONTACT = (
+    Parameter("touch.log_conductance_factor", "", -math.log(10.0), math.log(10.0), 0.0, False, "log H factor"),
+    Parameter("touch.lead_offset_s", "s", -0.5, 0.5, 0.0, False, "contact start relative to the shared lead"),
+    Parameter("touch.log_ramp_factor", "", -math.log(30.0), math.log(30.0), 0.0, False, "log build-up factor"),
+)
+#: the touches' own contacts' prior s.d., as a fraction of their bounds
+TOUCH_PRIOR_SD = 0.5
 
 
 @dataclass
@@ -166,10 +202,19 @@ def noise_levels(series: Sequence[tuple[np.ndarray, np.ndarray, float]]) -> dict
     Each record is smoothed by a least-squares cubic spline with knots every 0.25 s (which follows
     every physical change of these sensors); ``sigma_w`` is the RMS of what it leaves before the
     onset, ``sigma_t`` the median over records of that remainder's RMS divided by the slope's RMS
-    where the curve moves faster than 0.1 K/s (time-stamp jitter moves a sample by ``slope * dt``).
+    where the curve moves faster than 0.1 K/s (time-stamp jitter moves a sample by ``slope * dt``),
+    ``precontact_k`` the median scatter of the segment before any contact about a quadratic trend
+    (the noise's whole variance per sample, correlated parts included; see :func:`_residual_summary`).
     """
-    white, jitter = [], []
+    white, jitter, pre_scatter = [], [], []
     for t, x, onset in series:
+        # before any contact: the scatter about a quadratic trend (the heater's settling), every
+        # correlated component up to the segment's length
+        quiet = (t > t[0] + 0.05) & (t < onset - QUIET_BEFORE_S)
+        if quiet.sum() >= 20:
+            tq = t[quiet] - t[quiet].mean()
+            trend = np.polyval(np.polyfit(tq, x[quiet], 2), tq)
+            pre_scatter.append(float(np.sqrt(np.mean((x[quiet] - trend) ** 2))))
         knots = np.arange(t[0] + 0.25, t[-1] - 0.2, 0.25)
         if len(knots) < 4:
             continue
@@ -185,6 +230,7 @@ def noise_levels(series: Sequence[tuple[np.ndarray, np.ndarray, float]]) -> dict
     return {
         "white_k": float(np.median(white)) if white else 1e-3,
         "timing_jitter_s": float(np.median(jitter)) if jitter else 0.0,
+        "precontact_k": float(np.median(pre_scatter)) if pre_scatter else (float(np.median(white)) if white else 1e-3),
     }
 
 
@@ -198,8 +244,25 @@ def _class_nominal(materials: Sequence[Material]) -> tuple[float, float]:
 class _Problem:
     """The variable-projection least-squares problem over a batch of touches."""
 
-    def __init__(self, touches: list[FitTouch], classes: Sequence[Sequence[Material]], heater_off: bool) -> None:
+    def __init__(
+        self,
+        touches: list[FitTouch],
+        classes: Sequence[Sequence[Material]],
+        heater_off: bool,
+        nuisance: Sequence[str] = (),
+    ) -> None:
         self.touches = touches
+        unknown = set(nuisance) - set(NUISANCE_TERMS)
+        if unknown:
+            raise ValueError(f"unknown nuisance term(s) {sorted(unknown)}: choose from {NUISANCE_TERMS}")
+        #: per-touch nuisance terms (linear): the object's flux (a temperature not uniform with
+        #: depth) and the heater's power steps at the contact and at t_off (in place of the shared ambient)
+        self.nuisance = tuple(n for n in NUISANCE_TERMS if n in nuisance and (n != "heater_steps" or heater_off))
+        #: the linear columns they add (before T_obj)
+        self.nuisance_columns = [
+            *(["object_flux_w_m2"] if "object_flux" in self.nuisance else []),
+            *(["heater_step_at_contact_w_m2", "heater_step_at_off_w_m2"] if "heater_steps" in self.nuisance else []),
+        ]
         self.n = len(touches)
         self.passive = all(t.passive is not None for t in touches)
         self.heater_off = heater_off
@@ -238,7 +301,7 @@ class _Problem:
         self.class_e = np.array([_class_nominal(mats)[0] for mats in classes])
         self.class_alpha = np.array([_class_nominal(mats)[1] for mats in classes])
         params.append(Parameter("contact.radius_mm", "mm", 0.1, 50.0, 5.0, True, "contact patch radius a"))
-        params.append(Parameter("contact.lead_s", "s", -0.3, 1.5, 0.1, False, "contact start before the onset"))
+        params.append(Parameter("contact.lead_s", "s", -0.3, LEAD_MAX_S, 0.1, False, "contact start before the onset"))
         params.append(Parameter("contact.ramp_s", "s", 0.02, 2.0, 0.1, True, "contact build-up time"))
         if heater_off:
             params.append(
@@ -248,6 +311,14 @@ class _Problem:
         self.per_touch: list[Parameter] = []
         #: per-touch contact quality: every channel's H times this (1 in the shared fit)
         self.h_scale = np.ones(self.n)
+
+    def with_touch_contact(self) -> _Problem:
+        """The same problem with every touch's own contact (free, after the shared fit): its
+        conductance factor, its lead and its build-up time relative to the shared ones, each with a
+        weak prior (they trade off with the shared contact)."""
+        twin = copy.copy(self)
+        twin.per_touch = list(_TOUCH_CONTACT)
+        return twin
 
     @property
     def n_free(self) -> int:
@@ -265,7 +336,7 @@ class _Problem:
         )
 
     def unpack(self, free: np.ndarray) -> tuple[dict[str, float], np.ndarray, np.ndarray]:
-        values = {p.name: p.from_free(float(v)) for p, v in zip(self.shared, free, strict=True)}
+        values = {p.name: p.from_free(float(v)) for p, v in zip(self.shared, free[: len(self.shared)], strict=True)}
         for name in _TWIN_RATIOS:
             ratio = name.replace("_j_m2k", "").replace("_w_m2k", "") + "_ratio"
             if f"passive.{ratio}" in values:
@@ -276,6 +347,11 @@ class _Problem:
                 values[f"{ch}.lag2_s"] = values[f"{ch}.lags_s"] * (1.0 - values[f"{ch}.lag_share"])
         lead = np.full(self.n, values["contact.lead_s"])
         ramp = np.full(self.n, values["contact.ramp_s"])
+        if self.per_touch:
+            k, n = len(self.shared), self.n
+            self.h_scale = np.exp(free[k : k + n])
+            lead = lead + free[k + n : k + 2 * n]
+            ramp = ramp * np.exp(free[k + 2 * n : k + 3 * n])
         return values, lead, ramp
 
     def channel_model(self, values: dict[str, Any], channel: str, effusivity: Any, spreading: Any) -> ChannelModel:
@@ -290,8 +366,9 @@ class _Problem:
             lag2_s=values[f"{channel}.lag2_s"],
         )
 
-    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Columns (C, n, W, 3) per channel (R0, drift, obj) and the heater's power column (n, W)."""
+    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Columns (C, n, W, 3) per channel (R0, drift, obj), the heater's power column (n, W) and the
+        per-touch nuisance columns (C, n, W, K) (K = 0 without them)."""
         values, lead, ramp = self.unpack(free)
         radius = values["contact.radius_mm"] * 1e-3
         e = self.class_e[self.label]
@@ -301,10 +378,23 @@ class _Problem:
         channels = ("heated", "passive") if self.passive else ("heated",)
         cols = np.zeros((len(channels), self.n, self.length, 3))
         power = np.zeros((self.n, self.length))
+        extra = np.zeros((len(channels), self.n, self.length, self.n_nuisance))
         for c, ch in enumerate(channels):
             model = self.channel_model(values, ch, e, spreading)
             t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
             terms = channel_terms(model, t_rel, ramp, t_off)
+            if self.nuisance:
+                # the object's flux (one amplitude per touch for both channels: the same object),
+                # then the heater's steps (heated channel only) at the contact and at t_off
+                steps = "heater_steps" in self.nuisance and c == 0
+                times = (np.zeros(self.n), lead + values["heater.off_after_onset_s"]) if steps else ()
+                more = nuisance_terms(model, t_rel, ramp, times)
+                j = 0
+                if "object_flux" in self.nuisance:
+                    extra[c, :, :, 0] = more.flux
+                    j = 1
+                if steps:
+                    extra[c, :, :, j], extra[c, :, :, j + 1] = more.steps[0], more.steps[1]
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
             # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
             cols[c, :, :, 0] = 1.0 + terms.obj
@@ -317,13 +407,18 @@ class _Problem:
                 cols[c, :, :, 0] -= g * terms.power
                 cols[c, :, :, 1] -= (g * lead_lag + cap) * terms.power
                 power = g * terms.power  # the column of T_amb (shared by every touch)
-        return cols, power
+        return cols, power, extra
+
+    @property
+    def n_nuisance(self) -> int:
+        return len(self.nuisance_columns)
 
     def solve(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Residuals (C, n, W) (0 outside each record), linear values (n, 2C + 1), and ``Q``."""
-        cols, power = self.design(free)
+        cols, power, extra = self.design(free)
         n_ch = cols.shape[0]
-        m = 2 * n_ch + 1  # R0 and drift per channel, then T_obj
+        k = self.n_nuisance
+        m = 2 * n_ch + 1 + k  # R0 and drift per channel, the nuisance terms, then T_obj
         a = np.zeros((self.n, n_ch * self.length + 1 + n_ch, m))
         y = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
         q = np.zeros((self.n, n_ch * self.length + 1 + n_ch))
@@ -333,6 +428,7 @@ class _Problem:
             a[:, rows, 2 * c] = cols[c, :, :, 0] * w
             a[:, rows, 2 * c + 1] = cols[c, :, :, 1] * w
             a[:, rows, -1] = cols[c, :, :, 2] * w
+            a[:, rows, 2 * n_ch : 2 * n_ch + k] = extra[c] * w[:, :, None]
             y[:, rows] = self.x[c] * w
         q[:, : self.length] = power * w
         # weak priors (rows after the data): T_obj near the first channel's onset value, drifts small
@@ -348,10 +444,13 @@ class _Problem:
         scale = np.sqrt((a**2).sum(axis=1)) + 1e-12
         an = a / scale[:, None, :]
         pinv = np.linalg.pinv(an)  # (n, m, rows)
-        proj_y = y - np.einsum("nrm,nmk,nk->nr", an, pinv, y)
-        proj_q = q - np.einsum("nrm,nmk,nk->nr", an, pinv, q)
+        # (A (A+ y)): two matrix-vector products per touch, not one three-operand sum
+        proj_y = y - (an @ (pinv @ y[:, :, None]))[:, :, 0]
+        proj_q = q - (an @ (pinv @ q[:, :, None]))[:, :, 0]
         denom = float((proj_q**2).sum())
-        power_q = float((proj_q * proj_y).sum()) / denom if self.heater_off and denom > 0 else 0.0
+        # (with per-touch heater steps the shared ambient is one of their combinations: not fitted)
+        shared_ambient = self.heater_off and "heater_steps" not in self.nuisance and denom > 0
+        power_q = float((proj_q * proj_y).sum()) / denom if shared_ambient else 0.0
         sol = np.einsum("nmk,nk->nm", pinv, y - power_q * q) / scale
         fit = np.einsum("nrm,nm->nr", a, sol) + power_q * q
         res = (fit - y)[:, : n_ch * self.length].reshape(self.n, n_ch, self.length).transpose(1, 0, 2)
@@ -361,14 +460,44 @@ class _Problem:
     def residuals(self, free: np.ndarray) -> np.ndarray:
         """Data residuals in units of the model error, then one weak prior row per parameter."""
         res, _, _ = self.solve(free)
-        return np.concatenate([res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)])
+        rows = [res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)]
+        if self.per_touch:  # the touches' own contacts: weak priors around the shared one
+            widths = np.repeat([p.hi for p in self.per_touch], self.n)
+            rows.append(free[len(self.shared) :] / widths / TOUCH_PRIOR_SD)
+        return np.concatenate(rows)
+
+    def jacobian(self, free: np.ndarray) -> np.ndarray:
+        """Forward differences (relative step 1e-5, inside the bounds): one evaluation per shared
+        parameter and one per kind of per-touch parameter (a touch's own contact moves its own rows
+        only, so all touches are stepped at once)."""
+        hi = self.bounds()[1]
+        f0 = self.residuals(free)
+        k, n = len(self.shared), self.n
+        jac = np.zeros((len(f0), len(free)))
+        touch_of_row = np.concatenate(
+            [np.tile(np.nonzero(self.mask)[0], 2 if self.passive else 1), np.full(k, -1), np.tile(np.arange(n), 3)]
+        )
+        groups = [[j] for j in range(k)] + [list(range(k + g * n, k + (g + 1) * n)) for g in range(len(self.per_touch))]
+        for cols in groups:
+            step = np.zeros_like(free)
+            h = 1e-5 * np.maximum(1.0, np.abs(free[cols]))
+            h = np.where(free[cols] + h > hi[cols], -h, h)
+            step[cols] = h
+            df = self.residuals(free + step) - f0
+            if len(cols) == 1:
+                jac[:, cols[0]] = df / h[0]
+            else:  # column of touch i: the rows of touch i
+                for i, j in enumerate(cols):
+                    rows = touch_of_row == i
+                    jac[rows, j] = df[rows] / h[i]
+        return jac
 
     def prior(self, free: np.ndarray) -> np.ndarray:
         """Weak priors around the typical values (a factor of 10 for a scale, 1 s for a time): a
         parameter the data leave free stays where a sensor usually is instead of drifting to a
         bound, and two sessions of one sensor calibrate alike."""
         rows = []
-        for p, v in zip(self.shared, free, strict=True):
+        for p, v in zip(self.shared, free[: len(self.shared)], strict=True):
             width = PRIOR_LOG_SD if p.log else PRIOR_LINEAR_SD
             rows.append((v - p.to_free(p.start)) / width)
         return np.array(rows)
@@ -382,10 +511,15 @@ def calibrate_channels(
     starts: int = 8,
     seed: int = 0,
     heater_off: bool = True,
+    nuisance: Sequence[str] = (),
+    touch_contact: bool = True,
 ) -> CalibrationResult:
-    """Multi-start fit of the model to ``touches`` (see the module docstring)."""
+    """Multi-start fit of the model to ``touches`` (see the module docstring). ``nuisance``: the
+    per-touch terms to fit, of :data:`NUISANCE_TERMS` (see
+    :func:`synth.sensors.thermal.dynamics.nuisance_terms`); ``touch_contact``: after the shared
+    fit, refine it jointly with every touch's own contact (conductance factor, lead, build-up)."""
     started = time.perf_counter()
-    problem = _Problem(touches, classes, heater_off)
+    problem = _Problem(touches, classes, heater_off, nuisance)
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
 
@@ -416,9 +550,45 @@ def calibrate_channels(
     evaluations += int(final.nfev)
     res, sol, power_q = problem.solve(final.x)
     values, lead, ramp = problem.unpack(final.x)
-    if problem.heater_off:
+    if problem.heater_off and "heater_steps" not in problem.nuisance:
         values["heater.ambient_c"] = power_q
-    spread = _touch_spread(touches, classes, heater_off, problem, final.x)
+    spread, own_res = _touch_spread(touches, classes, heater_off, problem, final.x)
+    shared_res = res
+    if touch_contact:
+        # the joint refinement: shared parameters and every touch's own contact together, from the
+        # shared fit and the touches' own refits
+        problem = problem.with_touch_contact()
+        lo2, hi2 = problem.bounds()
+        x0 = np.concatenate(
+            [
+                final.x,
+                [math.log(r["touch_conductance_factor"]) for r in spread],
+                [r["touch_lead_s"] - float(lead[0]) for r in spread],
+                [math.log(r["touch_ramp_s"] / float(ramp[0])) for r in spread],
+            ]
+        )
+        final = optimize.least_squares(
+            problem.residuals,
+            np.clip(x0, lo2 + 1e-9, hi2 - 1e-9),
+            jac=problem.jacobian,
+            bounds=(lo2, hi2),
+            x_scale="jac",
+            max_nfev=TOUCH_RUN,
+        )
+        evaluations += int(final.nfev) + int(final.njev or 0) * (problem.n_free + len(problem.per_touch))
+        res, sol, power_q = problem.solve(final.x)
+        values, lead, ramp = problem.unpack(final.x)
+        if problem.heater_off and "heater_steps" not in problem.nuisance:
+            values["heater.ambient_c"] = power_q
+        own_res = res
+        k = problem.n_free
+        jac = np.asarray(final.jac)
+        cov = np.linalg.pinv(jac.T @ jac) * float(np.mean(final.fun**2))
+        for i, r in enumerate(spread):
+            r["touch_conductance_factor"] = float(problem.h_scale[i])
+            r["touch_conductance_sd_log"] = float(np.sqrt(max(cov[k + i, k + i], 0.0)))
+            r["touch_lead_s"] = float(lead[i])
+            r["touch_ramp_s"] = float(ramp[i])
     per_touch = []
     n_ch = 2 if problem.passive else 1
     for i in range(len(touches)):
@@ -429,8 +599,14 @@ def calibrate_channels(
         if n_ch == 2:
             row["passive_onset_c"] = float(sol[i, 2])
             row["passive_drift_k_s"] = float(sol[i, 3])
+        for j, name in enumerate(problem.nuisance_columns):
+            row[name] = float(sol[i, 2 * n_ch + j])
         per_touch.append(row)
-    report = _report(problem, final, res, values, per_touch, noise, evaluations, time.perf_counter() - started)
+    report = _report(
+        problem, final, shared_res, own_res, values, per_touch, noise, evaluations, time.perf_counter() - started
+    )
+    if problem.per_touch:
+        report["touch_contact"] = _touch_bounds(problem, final.x)
     return CalibrationResult(values, per_touch, {**noise.get("heated", {})}, report)
 
 
@@ -440,15 +616,17 @@ def _touch_spread(
     heater_off: bool,
     problem: _Problem,
     shared: np.ndarray,
-) -> list[dict[str, float]]:
+) -> tuple[list[dict[str, float]], np.ndarray]:
     """How much the touches differ: each touch refitted alone for its contact (a conductance
     factor, the lead and the build-up time), everything else at the shared fit. Their spread is
-    what a calibrated scene draws from (a press is never quite the same twice)."""
+    what a calibrated scene draws from (a press is never quite the same twice). Also returns the
+    residuals (C, n, W) of every touch with its own contact (0 outside its record)."""
     names = [p.name for p in problem.shared]
     i_lead, i_ramp = names.index("contact.lead_s"), names.index("contact.ramp_s")
     rows = []
-    for tc in touches:
-        single = _Problem([tc], classes, heater_off)
+    own = np.zeros((2 if problem.passive else 1, problem.n, problem.length))
+    for i, tc in enumerate(touches):
+        single = _Problem([tc], classes, heater_off, problem.nuisance)
 
         def residuals(theta: np.ndarray, single: _Problem = single) -> np.ndarray:
             single.h_scale = np.array([math.exp(theta[0])])
@@ -465,6 +643,11 @@ def _touch_spread(
         s2 = float(np.mean(fit.fun**2))
         # the factor's posterior s.d. (log): a wood at room temperature barely depends on H
         cov = np.linalg.pinv(jac.T @ jac) * s2
+        residuals(fit.x)  # sets the touch's own conductance factor
+        x_own = shared.copy()
+        x_own[i_lead], x_own[i_ramp] = fit.x[1], fit.x[2]
+        res_own = single.solve(x_own)[0][:, 0]
+        own[:, i, : res_own.shape[1]] = res_own
         rows.append(
             {
                 "touch_conductance_factor": math.exp(float(fit.x[0])),
@@ -474,7 +657,7 @@ def _touch_spread(
                 "touch_rms_k": float(np.sqrt(np.mean(fit.fun[: -len(single.shared)] ** 2))) * MODEL_ERROR_K,
             }
         )
-    return rows
+    return rows, own
 
 
 #: why a parameter sits at a bound, by (parameter, bound)
@@ -496,6 +679,7 @@ def _report(
     problem: _Problem,
     fit: optimize.OptimizeResult,
     res: np.ndarray,
+    own_res: np.ndarray,
     values: dict[str, float],
     per_touch: list[dict[str, float]],
     noise: dict[str, dict[str, float]],
@@ -557,35 +741,99 @@ def _report(
                 "above the heated reading: the fitted power change is a rise (more heating after the press, "
                 "as a controller that goes on holding its set point adds), not a switch-off"
             )
-    channels = ("heated", "passive") if problem.passive else ("heated",)
-    residual: dict[str, Any] = {}
-    total_k, total_sigma = [], []
-    for c, ch in enumerate(channels):
-        nz = noise.get(ch, {"white_k": 1e-3, "timing_jitter_s": 0.0})
-        fitted = problem.x[c] + res[c]  # the model's curve
-        slope = np.gradient(fitted, axis=1) * FIT_HZ
-        sigma = np.sqrt(nz["white_k"] ** 2 + (nz["timing_jitter_s"] * slope) ** 2)
-        r = res[c][problem.mask]
-        z = (res[c] / sigma)[problem.mask]
-        total_k.append(r)
-        total_sigma.append(z)
-        residual[ch] = {"rms_k": float(np.sqrt(np.mean(r**2))), "rms_sigma": float(np.sqrt(np.mean(z**2)))}
-        for i, row in enumerate(per_touch):
-            row[f"{ch}_rms_k"] = float(np.sqrt(np.mean(res[c, i][problem.mask[i]] ** 2)))
-    rms_sigma = float(np.sqrt(np.mean(np.concatenate(total_sigma) ** 2)))
+    residual = _residual_summary(problem, own_res, noise, per_touch, "own")
+    residual["shared_contact"] = _residual_summary(problem, res, noise, per_touch, "shared")
+    residual["contact"] = (
+        "each touch with its own contact (conductance factor, lead, build-up: the touch's nuisance "
+        "parameters, refitted with everything else shared); shared_contact: one contact for every touch"
+    )
     return {
         "model": "lumped channel(s) + two thermistor lags + contact ramp + pre-contact drift"
-        + (" + heater switched off after the onset" if problem.heater_off else ""),
+        + (
+            " + heater switched off after the onset"
+            if problem.heater_off and "heater_steps" not in problem.nuisance
+            else ""
+        )
+        + "".join(f" + per touch: {_NUISANCE_DOC[n]}" for n in problem.nuisance),
         "parameters": params,
         "at_bound": at_bound,
         "not_identified": unidentified,
         "per_touch": per_touch,
         "noise": noise,
-        "residual": {
-            **residual,
-            "rms_k": float(np.sqrt(np.mean(np.concatenate(total_k) ** 2))),
-            "rms_sigma": rms_sigma,
-            "within_3_sigma": rms_sigma <= 3.0,
-        },
+        "residual": residual,
         "solver": {"evaluations": evaluations, "seconds": seconds, "status": int(fit.status), "cost": float(fit.cost)},
     }
+
+
+def _residual_summary(
+    problem: _Problem,
+    res: np.ndarray,
+    noise: dict[str, dict[str, float]],
+    per_touch: list[dict[str, float]],
+    tag: str,
+) -> dict[str, Any]:
+    """Residuals ``res`` (C, n, W) per channel and overall: RMS in K and in noise sigma, two ways:
+
+    - ``rms_sigma``: against ``sigma(t)^2 = sigma_w^2 + (sigma_t dx/dt)^2`` (white noise from a
+      0.25 s spline's remainder before the onset, timing jitter; see :func:`noise_levels`);
+    - ``rms_sigma_precontact``: ``sigma_w`` replaced by the pre-contact segment's scatter about a
+      quadratic trend at the recorder's rate (``precontact_k``): the correlated noise's own
+      variance at every time scale up to the segment's length (~0.4 s), which the spline's knots
+      would partly follow.
+
+    Both compare a per-sample RMS with a per-sample variance: a correlated noise has the same
+    variance per sample, it only gives the residual fewer independent samples. Each touch's row
+    gets ``<channel>_rms_k`` (tag ``shared``) or ``<channel>_own_rms_k`` (tag ``own``)."""
+    channels = ("heated", "passive") if problem.passive else ("heated",)
+    out: dict[str, Any] = {}
+    total_k, total_z, total_zp = [], [], []
+    for c, ch in enumerate(channels):
+        nz = noise.get(ch, {"white_k": 1e-3, "timing_jitter_s": 0.0})
+        fitted = problem.x[c] + res[c]  # the model's curve
+        jitter = nz["timing_jitter_s"] * np.gradient(fitted, axis=1) * FIT_HZ
+        sigma = np.sqrt(nz["white_k"] ** 2 + jitter**2)
+        sigma_pre = np.sqrt(nz.get("precontact_k", nz["white_k"]) ** 2 + jitter**2)
+        r = res[c][problem.mask]
+        z = (res[c] / sigma)[problem.mask]
+        zp = (res[c] / sigma_pre)[problem.mask]
+        total_k.append(r)
+        total_z.append(z)
+        total_zp.append(zp)
+        out[ch] = {
+            "rms_k": float(np.sqrt(np.mean(r**2))),
+            "rms_sigma": float(np.sqrt(np.mean(z**2))),
+            "rms_sigma_precontact": float(np.sqrt(np.mean(zp**2))),
+        }
+        key = f"{ch}_rms_k" if tag == "shared" else f"{ch}_own_rms_k"
+        for i, row in enumerate(per_touch):
+            row[key] = float(np.sqrt(np.mean(res[c, i][problem.mask[i]] ** 2)))
+    rms_sigma = float(np.sqrt(np.mean(np.concatenate(total_z) ** 2)))
+    return {
+        **out,
+        "rms_k": float(np.sqrt(np.mean(np.concatenate(total_k) ** 2))),
+        "rms_sigma": rms_sigma,
+        "rms_sigma_precontact": float(np.sqrt(np.mean(np.concatenate(total_zp) ** 2))),
+        "within_3_sigma": rms_sigma <= 3.0,
+    }
+
+
+def _touch_bounds(problem: _Problem, free: np.ndarray) -> dict[str, Any]:
+    """Every touch's own contact: how many touches sit at a bound of each parameter, and why."""
+    lo, hi = problem.bounds()
+    k, n = problem.n_free, problem.n
+    out: dict[str, Any] = {}
+    for g, p in enumerate(problem.per_touch):
+        cols = slice(k + g * n, k + (g + 1) * n)
+        span = hi[cols] - lo[cols]
+        low = int(np.sum(free[cols] - lo[cols] < 1e-3 * span))
+        high = int(np.sum(hi[cols] - free[cols] < 1e-3 * span))
+        out[p.name] = {"bounds": [p.lo, p.hi], "meaning": p.doc, "touches_at_lower": low, "touches_at_upper": high}
+        if low or high:
+            out[p.name]["why_at_bound"] = (
+                "a touch whose curve hardly depends on it (a wood at the sensor's own temperature barely "
+                "depends on its contact) drifts to the bound; its prior keeps the rest near the shared value"
+                if "conductance" in p.name
+                else "the touch's curve asks for a contact further from the shared one than the bound allows: "
+                "the model lacks something at the press (see the residual)"
+            )
+    return out

@@ -104,11 +104,13 @@ def calibrate_recordings(
     starts: int = 6,
     seed: int = 0,
     name: str = "calibrated",
+    nuisance: tuple[str, ...] | None = None,
 ) -> tuple[Scene, dict[str, Any]]:
     """Fit the user's sensor from the labelled touches in ``source``; returns the scene and the
     calibration report (see the module docstring). The passive channel is fitted whenever every
     touch has one (it pins the object's temperature), whatever ``channels`` the scene's classifier
-    will read."""
+    will read. ``nuisance``: the per-touch nuisance terms to fit (default: the calibration's;
+    see :data:`~tactile_learn.calibration.thermal_calibration.NUISANCE_TERMS`)."""
     touches = [t for t in read_recordings(source, class_map=class_map) if t.material]
     if len(touches) < 2:
         raise DataError(f"{source}: {len(touches)} labelled touch(es): calibration needs two or more")
@@ -133,7 +135,10 @@ def calibrate_recordings(
         noise["passive"] = noise_levels(passive_noise)
     fit_touches = prepare_touches(series)
     materials = [[get_material(m) for m in mats] for _, mats in classes]
-    result = calibrate_channels(fit_touches, materials, noise, starts=starts, seed=seed)
+    if nuisance is None:
+        result = calibrate_channels(fit_touches, materials, noise, starts=starts, seed=seed)
+    else:
+        result = calibrate_channels(fit_touches, materials, noise, starts=starts, seed=seed, nuisance=nuisance)
     scene = scene_from_fit(result, classes, channels, noise, name=name)
     report = dict(result.report)
     report["classes"] = {n: list(m) for n, m in classes}
@@ -172,7 +177,13 @@ def scene_from_fit(
     g = v["heated.loss_w_m2k"]
     set_point = _span(heated_start, 0.15)
     steps = [0.0]
-    if off is not None:  # the fitted change of heater power at t_off, per touch: -(G (R0 + r lead - T_amb) + C r)
+    step_times = [lead + off] if off is not None else []
+    if off is not None and "heater_step_at_off_w_m2" in rows[0]:
+        # per-touch steps at the contact and at t_off: the scene's heater makes one step, of their
+        # sum, somewhere between the two times (its timing is widened over that span)
+        steps = [r["heater_step_at_contact_w_m2"] + r["heater_step_at_off_w_m2"] for r in rows]
+        step_times = [lead, lead + off]
+    elif off is not None:  # the fitted change of heater power at t_off, per touch: -(G (R0 + r lead - T_amb) + C r)
         lags = v["heated.lag_s"] + v["heated.lag2_s"]
         steps = [
             -(g * (r["heated_onset_c"] + r["heated_drift_k_s"] * lags - v["heater.ambient_c"]))
@@ -189,7 +200,7 @@ def scene_from_fit(
         lag2_s=_around(v["heated.lag2_s"], 0.15),
         heater="step" if off is not None else "constant",
         set_point_c=set_point,
-        heater_off_s=_span([lead + off], 0.3) if off is not None else (0.0, 0.0),
+        heater_off_s=_span(step_times, 0.3) if off is not None else (0.0, 0.0),
         heater_step_w_m2=(min(steps) - 0.2 * abs(min(steps)), max(steps) + 0.2 * abs(max(steps))),
         drift_k_s=_span([r["heated_drift_k_s"] for r in rows], 0.02),
     )

@@ -54,7 +54,16 @@ from scipy import special
 
 from synth.errors import InputError
 
-__all__ = ["ChannelModel", "ChannelTerms", "channel_response", "channel_terms", "phi_integral", "rational_response"]
+__all__ = [
+    "ChannelModel",
+    "ChannelTerms",
+    "NuisanceTerms",
+    "channel_response",
+    "channel_terms",
+    "nuisance_terms",
+    "phi_integral",
+    "rational_response",
+]
 
 _SQRT_PI = math.sqrt(math.pi)
 
@@ -417,3 +426,64 @@ def channel_response(model: ChannelModel, v0: np.ndarray, t: np.ndarray) -> np.n
     tt = np.asarray(t, dtype=np.float64)
     curve = model.response(np.maximum(tt, 0.0))
     return np.where(np.broadcast_to(tt, curve.shape) > 0, curve, 0.0) * np.asarray(v0, dtype=np.float64)[:, None]
+
+
+@dataclass(frozen=True)
+class NuisanceTerms:
+    """Extra basis curves of a channel's reading, (B, T) each (see :func:`nuisance_terms`)."""
+
+    #: per W/m^2 of a constant flux out of the object into the contact from the onset on
+    flux: np.ndarray
+    #: per W/m^2 of a heater power step at each of the given times, (K, B, T)
+    steps: np.ndarray
+
+
+def nuisance_terms(
+    model: ChannelModel, t: np.ndarray, ramp_s: np.ndarray | float = 0.0, t_steps: tuple[np.ndarray, ...] = ()
+) -> NuisanceTerms:
+    """Basis curves for what differs from touch to touch beyond the object's temperature, at times
+    ``t`` (B, T) after the contact onset:
+
+    - ``flux``: an object whose temperature is not uniform with depth. Its initial profile
+      ``T_obj + g x`` (a cooled block warming from its surface, a block in a draught) is a steady
+      solution of the heat equation that carries ``F = k g`` to the surface; in contact the sensor
+      sees ``H (T_b - T_i) = Z (T_i - T_obj) - F``, so the body's reading moves by
+      ``F H / (q^2 D*)`` (the object's term with ``H`` in place of ``-H Z``), the contact building
+      up over ``ramp_s`` as in :func:`channel_terms`;
+    - ``steps``: a heater power step at each time of ``t_steps`` (B,) after the onset (a heater that
+      changes its power more than once: a controller's response, read as steps), as
+      :func:`channel_terms`' ``power``.
+
+    Both are 0 before their start, linear in their amplitude, and closed forms (checked against a
+    finite-volume solution in the tests).
+    """
+    tt = np.asarray(t, dtype=np.float64)
+    b = len(model)
+    tt = np.broadcast_to(tt, (b, tt.shape[-1]))
+    ramp = np.broadcast_to(np.asarray(ramp_s, dtype=np.float64), (b,))
+    if (ramp < 0).any() or not np.isfinite(ramp).all():
+        raise InputError("ramp_s: must be finite and >= 0")
+    flux = np.empty(tt.shape)
+    steps = np.empty((len(t_steps), *tt.shape))
+    codes = model.structure()
+    for code in np.unique(codes):
+        rows = np.flatnonzero(codes == code)
+        part = model._rows(rows)
+        _, num_power, den = part._polynomials()
+        num_flux = part.conductance[:, None]
+        if (part.ki > 0).all():  # R = N q^2 / (q^2 D*) with an integrating controller
+            num_flux = _poly_mul(num_flux, np.array([[1.0, 0.0, 0.0]]))
+        width = den.shape[1] - 1
+        r, (w_flux, w_power) = _poles(np.stack([_pad_to(num_flux, width), _pad_to(num_power, width)]), den)
+        t_r, ramp_r = tt[rows], ramp[rows]
+        smooth = ramp_r > 0
+        step = _evaluate(r, w_flux, t_r)
+        if smooth.any():
+            safe = np.where(smooth, ramp_r, 1.0)[:, None]
+            integral = _evaluate(r, w_flux, t_r, integral=True) - _evaluate(r, w_flux, t_r - safe, integral=True)
+            step = np.where(smooth[:, None], integral / safe, step)
+        flux[rows] = step
+        for k, delay in enumerate(t_steps):
+            d = np.broadcast_to(np.asarray(delay, dtype=np.float64), (b,))[rows]
+            steps[k, rows] = _evaluate(r, w_power, t_r - d[:, None])
+    return NuisanceTerms(flux=flux, steps=steps)

@@ -191,11 +191,9 @@ def _direct_roots(a: np.ndarray) -> np.ndarray:
 
 def _min_gap(r: np.ndarray) -> np.ndarray:
     """Smallest pairwise root distance relative to the larger of the two roots (0 for a double root)."""
-    gaps = []
-    for i, j in ((0, 1), (0, 2), (1, 2)):
-        scale = np.maximum(np.maximum(np.abs(r[..., i]), np.abs(r[..., j])), 1e-300)  # avoids 0/0
-        gaps.append(np.abs(r[..., i] - r[..., j]) / scale)
-    return np.minimum(np.minimum(gaps[0], gaps[1]), gaps[2])
+    first, second = r[..., [0, 0, 1]], r[..., [1, 2, 2]]  # the three pairs side by side
+    scale = np.maximum(np.maximum(np.abs(first), np.abs(second)), 1e-300)  # avoids 0/0
+    return (np.abs(first - second) / scale).min(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -234,15 +232,21 @@ class ContactModel:
         )
         c, g, h, e, ks, v0_, s = (np.array(a) for a in arrays)
         names = ("heat_capacity", "loss", "conductance", "effusivity", "spreading", "v0", "heating")
-        for name, arr in zip(names, (c, g, h, e, ks, v0_, s), strict=True):
-            if not np.isfinite(arr).all():
-                raise InputError(f"{name}: must be finite")
-        for name, arr in (("heat_capacity", c), ("conductance", h), ("effusivity", e)):
-            if (arr <= 0).any():
-                raise InputError(f"{name}: must be > 0")
-        for name, arr in (("loss", g), ("spreading", ks)):
-            if (arr < 0).any():
-                raise InputError(f"{name}: must be >= 0")
+        values = (c, g, h, e, ks, v0_, s)
+        # one check over all parameters (a model is built per fit iteration: a check per name cost
+        # more than the arithmetic at batch 1); the loops below name the problem only on failure
+        every = np.stack(values)
+        if not np.isfinite(every).all():
+            for name, arr in zip(names, values, strict=True):
+                if not np.isfinite(arr).all():
+                    raise InputError(f"{name}: must be finite")
+        if (every[[0, 2, 3]] <= 0).any() or (every[[1, 4]] < 0).any():
+            for name, arr in (("heat_capacity", c), ("conductance", h), ("effusivity", e)):
+                if (arr <= 0).any():
+                    raise InputError(f"{name}: must be > 0")
+            for name, arr in (("loss", g), ("spreading", ks)):
+                if (arr < 0).any():
+                    raise InputError(f"{name}: must be >= 0")
         return cls(c, g, h, e, ks, v0_, s)
 
     @cached_property
@@ -254,14 +258,16 @@ class ContactModel:
         """
         c, g, e, ks, v0, s = self.heat_capacity, self.loss, self.effusivity, self.spreading, self.v0, self.heating
         h = self.conductance.copy()
-        r = _roots(_cubic(c, g, h, e, ks))
+        coef = _cubic(c, g, h, e, ks)
+        r = _roots(coef)
         for nudge in (1e-6, 1e-5, 1e-4):
             close = _min_gap(r) < 1e-3
             if not close.any():
                 break
             h = np.where(close, self.conductance * (1 + nudge), h)
-            r = np.where(close[..., None], _roots(_cubic(c, g, h, e, ks)), r)
-        coef = _cubic(c, g, h, e, ks)[..., None, :]
+            coef = _cubic(c, g, h, e, ks)
+            r = np.where(close[..., None], _roots(coef), r)
+        coef = coef[..., None, :]
         num = s[..., None] * (h[..., None] + ks[..., None] + e[..., None] * r) - v0[..., None] * h[..., None] * (
             e[..., None] * r + ks[..., None]
         )

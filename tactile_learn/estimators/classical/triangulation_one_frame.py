@@ -71,7 +71,8 @@ class OneFrameTriangulation:
     def loads(self, codes: list[float]) -> list[float]:
         """Disc loads (N) of six ADC codes: whole codes from the table, others by the batch inverse."""
         table = self.loads_of_codes
-        if all(c.is_integer() for c in codes):
+        top = len(self.loads_of_codes)  # codes a checked frame can hold; others (unchecked) by the batch inverse
+        if all(c.is_integer() and 0 <= c < top for c in codes):
             return [table[int(c)] for c in codes]
         return [float(v) for v in self.loads_from_readings(np.array([codes]))[0]]
 

@@ -139,3 +139,28 @@ def test_single_frames_of_other_forms_take_the_full_check() -> None:
         est.predict(frame[0])
     with pytest.raises(InputError, match="shape"):
         est.predict(np.zeros((1, 5), dtype=np.float32))
+
+
+def test_the_checks_forward_model_is_the_films() -> None:
+    """OnePressCheck.conductance (the load path and law written out) equals the film's own
+    functions bit for bit, near the sensors, beyond the load table and at clipped forces."""
+    check = one_press_check(SCENE).prepare()
+    config, law, _, tip = check._model
+    transfer, positions = check._path
+    rng = np.random.default_rng(8)
+    params = np.column_stack([rng.uniform(-90.0, 90.0, (3000, 2)), rng.uniform(-12.0, 8.0, 3000)])
+    force = np.exp(np.clip(params[:, 2], -10.0, 6.0))
+    distance = np.sqrt(((params[:, None, :2] - positions[None]) ** 2).sum(axis=2))
+    radius = fsr.hertz_radius_mm(force, np.asarray(tip), config.layout)
+    want = law.conductance_us(transfer.per_newton(distance, radius[:, None]) * force[:, None], 1.0)
+    assert (distance > transfer.d_grid[-1]).any() and (distance < 2.0).any()
+    np.testing.assert_array_equal(check.conductance(params), want)
+    np.testing.assert_array_equal(check.conductance(params[:1]), want[:1])
+
+
+def test_codes_outside_the_table_take_the_batch_inverse() -> None:
+    """predict_checked trusts its caller; a code beyond the ADC's range still gets the batch
+    path's answer rather than an index error."""
+    est = TriangulationEstimator(SCENE).prepare()
+    frame = np.array([[5000.0, 10.0, 0.0, 700.0, 650.0, 300.0]], dtype=np.float32)
+    np.testing.assert_allclose(est.predict_checked(frame), est.predict_batch(frame), rtol=1e-6, atol=1e-5)

@@ -1,0 +1,89 @@
+"""The calibration residual on real touches, per channel and per condition, for several model variants.
+
+    python scripts/thermal_residual.py --label R_1 --json results/thermal_robot_residual.json
+
+For the labelled session: ``calibrate`` once per set of per-touch nuisance terms (none; the
+object's flux; the object's flux and the heater's steps), and the residual in mK and in noise sigma
+(both noise definitions: see ``tactile_learn.calibration.thermal_calibration._residual_summary``),
+with one contact for every touch and with each touch's own contact, overall, per channel and per
+condition of ``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time.
+The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from synth.io import atomic_write_json
+from tactile_learn.thermal_adapt import CHANNEL_CHOICES, calibrate_recordings
+from tactile_learn.thermal_recordings import read_recordings, select_recordings
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from thermal_robot_protocol import robot_data  # a sibling script
+
+VARIANTS = {"none": (), "object_flux": ("object_flux",), "object_flux+heater_steps": ("object_flux", "heater_steps")}
+
+
+def by_condition(report: dict[str, Any], conditions: dict[str, str]) -> dict[str, Any]:
+    """RMS (mK) per condition and channel: the root mean square of the touches' RMS (the records
+    are of equal length within a few samples)."""
+    out: dict[str, Any] = {}
+    for cond in sorted(set(conditions.values())):
+        rows = [t for t in report["touches"] if conditions[Path(t["file"]).name] == cond]
+        entry = {}
+        for ch in report["channels_fitted"]:
+            for key, name in ((f"{ch}_rms_k", "shared_contact"), (f"{ch}_own_rms_k", "own_contact")):
+                entry[f"{ch}_{name}_mk"] = 1e3 * math.sqrt(sum(r[key] ** 2 for r in rows) / len(rows))
+        out[cond] = entry
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", default=None)
+    parser.add_argument("--label", default="R_1")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma list of {', '.join(VARIANTS)}")
+    parser.add_argument("--json", default=None)
+    args = parser.parse_args(argv)
+    data = robot_data(args.data)
+    out: dict[str, Any] = {"command": " ".join(["python", "scripts/thermal_residual.py", *(argv or sys.argv[1:])])}
+    with tempfile.TemporaryDirectory() as tmp:
+        labelled = select_recordings(data, Path(tmp) / "labelled", "session", [args.label])
+        conditions = {Path(t.file).name: str(t.info.get("condition", "?")) for t in read_recordings(labelled)}
+        for variant in args.variants.split(","):
+            started = time.perf_counter()
+            _, report = calibrate_recordings(labelled, CHANNEL_CHOICES["all"], nuisance=VARIANTS[variant])
+            seconds = time.perf_counter() - started
+            out[variant] = {
+                "calibration_s": seconds,
+                "residual": report["residual"],
+                "by_condition": by_condition(report, conditions),
+                "noise": report["noise"],
+                "at_bound": report["at_bound"],
+                "not_identified": report["not_identified"],
+                "parameters": {k: v["value"] for k, v in report["parameters"].items()},
+                "touches": report["touches"],
+            }
+            res = report["residual"]
+            print(
+                f"{variant}: {seconds:.0f} s; own contact heated {res['heated']['rms_k'] * 1e3:.2f} mK "
+                f"({res['heated']['rms_sigma']:.1f} / {res['heated']['rms_sigma_precontact']:.1f} sigma), passive "
+                f"{res['passive']['rms_k'] * 1e3:.2f} mK ({res['passive']['rms_sigma']:.1f} / "
+                f"{res['passive']['rms_sigma_precontact']:.1f} sigma); shared contact heated "
+                f"{res['shared_contact']['heated']['rms_k'] * 1e3:.2f}, passive "
+                f"{res['shared_contact']['passive']['rms_k'] * 1e3:.2f} mK",
+                flush=True,
+            )
+    if args.json:
+        atomic_write_json(args.json, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
