@@ -7,7 +7,11 @@ scene, the input shape and the valid range once, checks each batch with two redu
 minimum and maximum against the range: NaN and inf fail too) and calls the estimator's
 ``predict_checked``. Anything unusual (another dtype or shape, a value out of range, a task whose
 check does more than check) goes through the task's full ``check_inputs``, so bad input gets the
-same clear :class:`~synth.errors.InputError` as ``predict`` gives.
+same clear :class:`~synth.errors.InputError` as ``predict`` gives. A learned model's single frames
+(without a gate) go through an io binding the stream owns
+(:meth:`~tactile_learn.runtime.OnnxEstimator.frame_runner`: the frame copied into a bound input, no
+per-call dicts or allocations inside onnxruntime); a classical method's through its own
+single-frame path (set up in ``prepare``: see each method's docstring).
 
 With ``gate=True`` (or an :class:`~tactile_learn.idle.IdleGate`) the stream also skips idle frames:
 frames within the sensor's noise floor at rest (the model card's ``idle`` entry; for a classical
@@ -89,6 +93,11 @@ class FrameStream:
         fast = "predict_proba_checked" if estimator.is_classifier else "predict_checked"
         compute: Callable[[np.ndarray], np.ndarray] = getattr(estimator, fast)
         self._compute = compute
+        # a learned model's single frames through an io binding owned by this stream
+        # (only ungated: a gated stream sends its active frames through predict_checked, which the
+        # gate's tests watch; its saving is the skipped frames)
+        runner = getattr(estimator, "frame_runner", None) if self.gate is None else None
+        self._compute_one: Callable[[np.ndarray], np.ndarray] | None = runner() if runner is not None else None
         self.frames = 0
         self.skipped = 0
         # a batch of one small frame: check and gate on Python floats (tactile_learn.stream_one_frame)
@@ -126,12 +135,14 @@ class FrameStream:
             if verdict is not None:  # a valid frame (else the full check below gives its error)
                 self.frames += 1
                 if verdict:
-                    return self._compute(frames)
+                    return (self._compute_one or self._compute)(frames)
                 self.skipped += 1
                 return self.task.empty_prediction(1, self.scene)
         x = self.check(frames)
         n = len(x)
         self.frames += n
+        if n == 1 and self._compute_one is not None:
+            return self._compute_one(x)
         if self.gate is None or not n:
             return self._compute(x)
         active = self.gate.active(x)

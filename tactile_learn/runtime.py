@@ -15,6 +15,7 @@ same checks as the classical estimators (shape, dtype, NaN/inf, negative or satu
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -229,6 +230,39 @@ class OnnxEstimator(Estimator):
         if len(x) == 0:
             return self._finish(x, np.zeros((0, *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32))
         return self._finish(x, np.asarray(run(output, {input_name: x})[0], dtype=np.float32))
+
+    def frame_runner(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """A function of one validated frame ``(1, *shape)`` giving what :meth:`predict_proba_checked`
+        gives, through an io binding with buffers of its own: the frame is copied into a bound input,
+        the graph writes into a bound output, no per-call dict, output list or allocation inside
+        onnxruntime. The buffers make it a function for one caller at a time:
+        :class:`~tactile_learn.frame_stream.FrameStream` builds one per stream. ``None`` where the
+        graph's first output has no fixed frame shape or is not float32 (then the stream calls
+        :meth:`predict_proba_checked`)."""
+        _, output, input_name = self.prepared_state("run_")
+        session = self.session_
+        shape = self.card_["outputs"][0]["shape"][1:]
+        graph_input = session.get_inputs()[0]
+        if session.get_outputs()[0].type != "tensor(float)" or graph_input.type != "tensor(float)":
+            return None
+        if not all(isinstance(d, int) and d > 0 for d in shape):
+            return None
+        import onnxruntime as ort
+
+        frame = np.zeros((1, *self.input_shape(self.scene_)), dtype=np.float32)
+        result = np.zeros((1, *shape), dtype=np.float32)
+        binding = session.io_binding()
+        binding.bind_ortvalue_input(input_name, ort.OrtValue.ortvalue_from_numpy(frame))
+        binding.bind_ortvalue_output(output[0], ort.OrtValue.ortvalue_from_numpy(result))
+        run_bound = session.run_with_iobinding
+        finish = self.finish_
+
+        def run_frame(x: np.ndarray) -> np.ndarray:
+            frame[...] = x
+            run_bound(binding)
+            return finish(x, result.copy())  # the buffer is overwritten by the next frame
+
+        return run_frame
 
     def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every output of the graph by name (the first is what :meth:`predict_proba_checked` returns)."""

@@ -19,6 +19,12 @@ The defaults were chosen on validation presses (seed 2; ``scripts/capacitive_res
 the settings that miss under 0.5 % of the contacts (a higher floor separates more and loses light
 contacts). Contact shapes (outline, area, centroid,
 orientation) follow from the image with :mod:`~tactile_learn.estimators.classical.contact_shapes`.
+
+``prepare`` works out the load noise and both levels once (the noise comes from the cell's
+response curve: looking it up cost more than a frame's arithmetic). A single frame (batch 1, the
+streaming case) goes through 2-D arithmetic on the one image - two small matrix products, the
+contact test as one scalar comparison, the local peak by two 1-D maximum filters only where the
+frame has contact - with the batch path's results (to float32 rounding of the products).
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 
 from synth.scene import Scene
 from synth.sensors.capacitive.config import CapacitiveConfig
@@ -64,6 +71,7 @@ def bicubic_matrix(n: int, s: int) -> np.ndarray:
 class _Upsampler:
     rows: np.ndarray  # (H, N) float32
     cols: np.ndarray  # (W, M) float32
+    cols_t: np.ndarray  # (M, W) float32, contiguous: ``cols.T`` for one frame's 2-D product
     per_pixel: float  # share of a cell's load on each of its pixels: 1 / s^2
 
     def image(self, loads: np.ndarray) -> np.ndarray:
@@ -75,9 +83,11 @@ class _Upsampler:
 def _upsampler(config: CapacitiveConfig) -> _Upsampler:
     g = config.geometry
     s = g.samples_per_pitch
+    cols = bicubic_matrix(g.n_cols, s).astype(np.float32)
     return _Upsampler(
         rows=bicubic_matrix(g.n_rows, s).astype(np.float32),
-        cols=bicubic_matrix(g.n_cols, s).astype(np.float32),
+        cols=cols,
+        cols_t=np.ascontiguousarray(cols.T),
         per_pixel=1.0 / s**2,
     )
 
@@ -100,20 +110,51 @@ class _ContactImageEstimator(Estimator):
     def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:
         raise NotImplementedError
 
+    def _prepare_levels(self) -> None:
+        """The contact level and the per-pixel floor (N), from the load noise, once."""
+        config: CapacitiveConfig = self.scene.sensor
+        noise = load_noise_n(config)
+        self.contact_level_ = self.contact_sigmas * noise
+        # a cell's noise spread over its pixels
+        self.pixel_floor_ = self.floor_sigmas * noise / config.geometry.samples_per_pitch**2
+
     def predict(self, X: Any) -> np.ndarray:
         return self.predict_checked(capacitive_input(X, self.scene.sensor, "cell_load"))
 
     def predict_checked(self, loads: np.ndarray) -> np.ndarray:
-        self.prepared_state("upsampler_")  # an unprepared estimator fails before any work
+        up: _Upsampler = self.prepared_state("upsampler_")  # an unprepared estimator fails before any work
         config: CapacitiveConfig = self.scene.sensor
         if not len(loads):
             return np.zeros((0, 2, *config.geometry.image_shape), dtype=np.float32)
+        if len(loads) == 1 and type(self).single_force is not _ContactImageEstimator.single_force:
+            return self._one_frame(loads[0], self.single_force(loads[0], up))
         force = self._force(loads, config)
-        noise = load_noise_n(config)
-        touching = loads.reshape(len(loads), -1).max(axis=1) >= self.contact_sigmas * noise
-        floor = self.floor_sigmas * noise / config.geometry.samples_per_pitch**2  # a cell's noise over its pixels
-        mask = threshold_mask(force, self.threshold, floor, self.reach) & touching[:, None, None]
+        touching = loads.reshape(len(loads), -1).max(axis=1) >= self.contact_level_
+        mask = threshold_mask(force, self.threshold, self.pixel_floor_, self.reach) & touching[:, None, None]
         return np.stack([force, mask], axis=1).astype(np.float32)
+
+    def single_force(self, loads: np.ndarray, up: _Upsampler) -> np.ndarray:
+        """The force image (H, W) float32 of one frame's loads (N, M), where a method has a
+        single-frame path (the base class has none: batch 1 goes through :meth:`_force`)."""
+        raise NotImplementedError
+
+    def _one_frame(self, loads: np.ndarray, force: np.ndarray) -> np.ndarray:
+        """(1, 2, H, W): the force image (H, W) of one frame's ``loads`` (N, M) and its mask, as
+        :meth:`predict_checked` builds them for a batch (the contact test on the frame's largest
+        load, the local peak within ``reach``)."""
+        out = np.zeros((1, 2, *force.shape), dtype=np.float32)
+        out[0, 0] = force
+        if not loads.max() >= self.contact_level_:
+            return out  # no contact: an empty mask
+        if self.reach > 0:
+            size = 2 * self.reach + 1
+            peak = ndimage.maximum_filter1d(force, size, axis=0, mode="nearest")
+            ndimage.maximum_filter1d(peak, size, axis=1, mode="nearest", output=peak)
+        else:
+            peak = np.float32(force.max(initial=0.0))
+        level = np.maximum(self.threshold * peak, self.pixel_floor_)
+        np.greater_equal(force, level, out=out[0, 1], casting="unsafe")
+        return out
 
 
 class BicubicEstimator(_ContactImageEstimator):
@@ -131,7 +172,14 @@ class BicubicEstimator(_ContactImageEstimator):
 
     def prepare(self) -> BicubicEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
+        self._prepare_levels()
         return self
+
+    def single_force(self, loads: np.ndarray, up: _Upsampler) -> np.ndarray:
+        force = up.rows @ loads @ up.cols_t
+        np.maximum(force, 0.0, out=force)
+        force *= np.float32(up.per_pixel)
+        return force
 
     def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:
         up: _Upsampler = self.__dict__.get("upsampler_") or _upsampler(config)
@@ -194,6 +242,7 @@ class DeconvolutionEstimator(_ContactImageEstimator):
     def prepare(self) -> DeconvolutionEstimator:
         self.upsampler_ = _upsampler(self.scene.sensor)
         self.deconvolver_ = _deconvolver(self.scene.sensor, float(self.smoothness))
+        self._prepare_levels()
         return self
 
     def _force(self, loads: np.ndarray, config: CapacitiveConfig) -> np.ndarray:

@@ -27,6 +27,15 @@ so this one is the project's own, documented here.
    profiled out); ``none`` scores ``-|y|^2 / (2 sigma^2) + 3`` (a material must explain at least
    ``6 sigma^2`` of the signal's energy). Probabilities are the softmax of the scores; a pixel
    without a detected onset is ``none``.
+
+A single curve (batch 1, the streaming case) is aligned by :mod:`tactile_learn.thermal_frame`
+(the same steps on one vector, equal to the batch functions' results) and matched against the
+library's transposed copy (``(J + W, M)``, built in ``prepare``) through the rows its drop fills:
+``y`` is zero past the window's end, so the dot products read only its ``n_valid`` first samples
+of each template (half the library's memory for a mid-window onset; at batch 1 the product is
+bound by reading the library, not by arithmetic). Scores stay float64: they are RSS over
+``2 sigma^2`` of a signal many thousand ``sigma^2`` strong, where float32 would move them by
+whole nats.
 """
 
 from __future__ import annotations
@@ -37,6 +46,7 @@ from synth.materials import Material
 from synth.scene import Scene
 from synth.sensors.thermal import ContactModel, ThermalConfig, spreading_conductance
 from tactile_learn.estimators.base import Classifier
+from tactile_learn.thermal_frame import detect_onset_one, drop_segment_one
 from tactile_learn.thermal_signal import LOOKBACK, Onset, detect_onset, drop_segments
 from tactile_learn.validation.thermal import thermal_check, thermal_input
 
@@ -106,6 +116,10 @@ class CurveLibrary:
         self.n_materials = len(materials)
         self.lookback = lookback
         self.cum_sq = np.cumsum(self.templates**2, axis=1)
+        # one curve's layout: a sample's values over every template contiguous, so the samples a
+        # drop fills are one block of rows
+        self.templates_t = np.ascontiguousarray(self.templates.T)  # (J + length, M)
+        self.cum_sq_t = np.ascontiguousarray(self.cum_sq.T)
 
     def match(self, y: np.ndarray, n_valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per curve: the smallest RSS of every material (B, K) and the best template index (B,)."""
@@ -118,6 +132,18 @@ class CurveLibrary:
         # templates are ordered material first (the library's meshgrid): one block per material
         per_mat = rss.reshape(len(y), self.n_materials, -1).min(axis=2)
         return per_mat, rss.argmin(axis=1)
+
+    def match_one(self, y: np.ndarray, n_valid: int) -> np.ndarray:
+        """:meth:`match`'s smallest RSS of every material (K,) for one drop ``y`` (J + W,) whose
+        first ``n_valid`` entries are filled."""
+        n = min(max(n_valid, 1), len(self.cum_sq_t))
+        dots = y[:n] @ self.templates_t[:n]  # y is zero from n on
+        norms = self.cum_sq_t[n - 1]
+        positive = norms > 0
+        np.maximum(dots, 0.0, out=dots)
+        gain = np.divide(dots * dots, norms, out=np.zeros_like(dots), where=positive)
+        rss = np.maximum(float(y @ y) - gain, 0.0)
+        return rss.reshape(self.n_materials, -1).min(axis=1)
 
 
 class CurveMatchEstimator(Classifier):
@@ -161,11 +187,28 @@ class CurveMatchEstimator(Classifier):
 
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
         x = heated(x)
-        self.prepared_state("library_")  # an unprepared estimator fails before any work
+        library: CurveLibrary = self.prepared_state("library_")  # an unprepared estimator fails before any work
         if len(x) == 0:
             return np.zeros((0, len(self.scene.sensor.class_names) + 1), dtype=np.float32)
-        scores, _, _ = self.scores(x)
+        if len(x) == 1:
+            scores = self._scores_one(x[0], library)[None]
+        else:
+            scores, _, _ = self.scores(x)
         return merge_classes(softmax(scores), self.scene.sensor).astype(np.float32)
+
+    def _scores_one(self, x: np.ndarray, library: CurveLibrary) -> np.ndarray:
+        """:meth:`scores`' log-scores (K + 1,) of one curve ``x`` (W,)."""
+        cfg: ThermalConfig = self.scene.sensor
+        onset = detect_onset_one(x, cfg.readout.sampling_hz, cfg.readout.adc_step_k)
+        scores = np.full(library.n_materials + 1, -np.inf)
+        if not onset.detected:
+            scores[-1] = 0.0
+            return scores
+        y, n_valid = drop_segment_one(x, onset, library.lookback)
+        var = 2.0 * onset.sigma**2
+        np.divide(library.match_one(y, n_valid), -var, out=scores[:-1])
+        scores[-1] = -float(y @ y) / var + NONE_BONUS
+        return scores
 
 
 def heated(x: np.ndarray) -> np.ndarray:

@@ -24,10 +24,21 @@ than their noise would fit noise. Also stop when an update changes the map by le
 cannot represent a contact much smaller than a cell exactly, so for such contacts the misfit
 levels off above the noise (typically 20-70 % below the intersection estimate's) and these two
 rules end the iterations.
+
+A single frame (batch 1, the streaming case) iterates over its *lit cells* only: the iterations
+never light a cell the start left dark, so only the rows of the cover operators that belong to
+lit cells matter (a two-contact frame lights a few dozen of 256). ``prepare`` stacks every layer's
+operator into one ``(N M, L N M)`` matrix; a frame gathers its lit rows once (``G``), and each
+iteration is ``x @ G`` for the stresses and one ``(2, L N M) @ G^T`` for both halves of the ratio,
+with ``measured @ w`` computed once per frame: a few dozen numpy calls on short vectors instead of
+four ``256 x 256`` products per iteration. The arithmetic and stopping rules are the batch path's
+(float32 products, float64 map and misfit), so the maps agree to float32 rounding of the sums
+(where rounding moves a frame across a stopping threshold, by at most one iteration's change).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -71,8 +82,11 @@ class ProjectionEstimator(Estimator):
                 "k": [op.T.astype(np.float32).copy() for op in ops],  # right-multiplied: (B, NM) @ (NM, NM)
                 "k_t": [op.astype(np.float32).copy() for op in ops],
                 "w": sensor.layout.flat_weights.astype(np.float32),  # (C, L*NM)
+                "w_t": np.ascontiguousarray(sensor.layout.flat_weights.T, dtype=np.float32),
                 "noise": sensor.load_noise().astype(np.float64),
                 "start": IntersectionEstimator(self.scene, noise_floor=self.noise_floor).prepare(sensor),
+                # every layer's operator side by side: x @ stacked is the stress on every segment
+                "stacked": np.ascontiguousarray(np.concatenate([op.T for op in ops], axis=1), dtype=np.float32),
             }
         return self
 
@@ -101,9 +115,15 @@ class ProjectionEstimator(Estimator):
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         m: dict[str, Any] = self.prepared_state("model_")
         sensor: StripSensor = m["sensor"]
-        start = m["start"].predict_checked(readings)
+        intersection: IntersectionEstimator = m["start"]
+        start = intersection.predict_checked(readings)
         b, n, mm = start.shape
-        measured = channel_loads(sensor, readings, self.noise_floor)
+        if b == 1 and intersection.frame_loads_ is not None:
+            # the same loads as channel_loads, through the single-frame arithmetic
+            return self._one_frame(start, intersection.frame_loads_(readings[0]))
+        measured = channel_loads(sensor, readings, self.noise_floor, intersection.load_floor_)
+        if b == 1:
+            return self._one_frame(start, measured[0])
         noise = m["noise"]
         x = start.reshape(b, n * mm).astype(np.float64)
         active = np.flatnonzero(x.max(axis=1) > 0)  # all-zero frames are already consistent
@@ -125,3 +145,55 @@ class ProjectionEstimator(Estimator):
             x[active[go_on]] = updated[go_on]
             active = active[go_on]
         return x.reshape(b, n, mm).astype(np.float32)
+
+    def _one_frame(self, start: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        """:meth:`predict_checked`'s iterations for one frame (its start (1, N, M), its channel
+        loads (C,)) over the cells the start lights (module docstring)."""
+        m: dict[str, Any] = self.model_
+        flat = start.reshape(-1)
+        lit = np.flatnonzero(flat)
+        if not len(lit):
+            return start  # an all-zero frame is already consistent
+        law = m["sensor"].law
+        exponent, p0 = law.exponent, law.p0_kpa
+        power = (exponent + 1.0) / exponent
+        w: np.ndarray = m["w"]
+        w_t: np.ndarray = m["w_t"]
+        inv_noise = 1.0 / m["noise"]
+        g = m["stacked"][lit]  # (lit, L N M): the rows of the lit cells
+        g_t = np.ascontiguousarray(g.T)
+        sides = np.empty((2, w.shape[1]), dtype=np.float32)
+        weighted = np.empty_like(sides)
+        # np.dot: a vector times a matrix without matmul's generalised-ufunc set-up (2 us a call here)
+        np.dot(measured.astype(np.float32), w, out=sides[0])  # J^T's numerator side, fixed per frame
+        x = flat[lit].astype(np.float64)
+        ratio = np.empty(len(lit), dtype=np.float32)
+        for _ in range(self.max_iter):
+            stress = np.dot(x.astype(np.float32), g)
+            np.maximum(stress, 0.0, out=stress)
+            # the law's conductance_gain and its derivative, as _loads computes them
+            stress /= p0
+            f = np.log1p(stress, out=stress)
+            f *= -exponent
+            np.expm1(f, out=f)
+            np.negative(f, out=f)
+            model = np.dot(f, w_t)
+            misfit = (model - measured) * inv_noise
+            if not math.sqrt(float(np.dot(misfit, misfit)) / len(misfit)) > self.tau:
+                break  # the discrepancy principle is met: keep the current map
+            d = np.subtract(1.0, f, dtype=np.float32)
+            d **= power
+            d *= exponent / p0
+            np.dot(model, w, out=sides[1])
+            numerator, denominator = np.dot(np.multiply(sides, d, out=weighted), g_t)
+            # 0/0 where a cell has no sensitivity left: keep its value
+            ratio.fill(1.0)
+            np.divide(numerator, denominator, out=ratio, where=denominator > 1e-30)
+            updated = x * ratio
+            step = updated - x
+            if not math.sqrt(float(np.dot(step, step))) > self.rel_tol * max(math.sqrt(float(np.dot(x, x))), 1e-30):
+                break  # the map has settled
+            x = updated
+        out = np.zeros_like(flat)
+        out[lit] = x
+        return out.reshape(start.shape)
