@@ -9,7 +9,14 @@
    (both marginals are kept when the two totals agree), it is exact for a single contact inside one
    cell, and unlike the geometric mean ``sqrt(Lr_i Lc_j)`` it does not spread a strong row over every
    lit column. (``rule="geometric"`` is available for comparison.)
-3. Turn ``f_ij`` back into pressure through the piezoresistive law (unit gain assumed).
+3. Turn ``f_ij`` back into pressure through the piezoresistive law (unit gain assumed), with
+   ``f_ij`` capped at ``max_share`` (0.95, i.e. 19 ``p0`` for the linear law). Why a cap: a strip's
+   load sums the fractions of all its segments, so when two or three contacts load one row and
+   one column over several segments the product rule's share exceeds 1, which no single crossing
+   can carry; the law's inverse ``p0 ((1 - f)^(-1/n) - 1)`` then diverges (its clip at
+   ``1 - 1e-6`` gave 10^8 kPa on 3 in 1,000 three-sphere frames). Near ``f = 1`` the inverse
+   amplifies an error in ``f`` by ``1 / (1 - f)^(1 + 1/n)`` - 400x at 0.95 for ``n = 1`` -, so a
+   share this high says "very high", not how high.
 
 Ghosts are inherent: two contacts light two rows and two columns, and the product lights all four
 crossings. The depth blur of the cover is not undone (see ``projection``). Other layouts
@@ -29,6 +36,7 @@ from typing import Literal
 
 import numpy as np
 
+from synth.errors import ConfigError
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.estimators.base import Estimator
@@ -117,16 +125,23 @@ class IntersectionEstimator(Estimator):
     name = "intersection"
 
     def __init__(
-        self, scene: Scene, rule: Literal["product", "geometric"] = "product", noise_floor: float = 2.0
+        self,
+        scene: Scene,
+        rule: Literal["product", "geometric"] = "product",
+        noise_floor: float = 2.0,
+        max_share: float = 0.95,
     ) -> None:
         self.scene = scene
         self.rule = rule
         self.noise_floor = noise_floor
+        self.max_share = max_share
 
     def prepare(self, sensor: StripSensor | None = None) -> IntersectionEstimator:
         """Build the scene's strip sensor (its readout inverse and noise), once; ``sensor``: one
         already built for the same scene (shared with another method)."""
         if "sensor_" not in self.__dict__:
+            if not 0.0 < self.max_share < 1.0:
+                raise ConfigError(f"max_share: {self.max_share!r} is not in (0, 1) (a crossing's share of its strips)")
             self.input_check_ = strips_check(self.scene.sensor)
             self.sensor_ = sensor if sensor is not None else StripSensor(self.scene.sensor)
             self.load_floor_ = self.noise_floor * self.sensor_.load_noise()  # per channel, (C,)
@@ -151,7 +166,7 @@ class IntersectionEstimator(Estimator):
             share = np.sqrt(rows[:, :, None] * cols[:, None, :])
         else:
             raise ValueError(f"rule: {self.rule!r} is not 'product' or 'geometric'")
-        return sensor.law.stress_from_gain(share).astype(np.float32)
+        return sensor.law.stress_from_gain(np.minimum(share, self.max_share)).astype(np.float32)
 
     def _one_frame(self, loads: np.ndarray, sensor: StripSensor) -> np.ndarray:
         """The product rule on one frame's loads (C,): a (1, N, M) float32 map."""
@@ -159,10 +174,10 @@ class IntersectionEstimator(Estimator):
         total = 0.5 * float(loads.sum())
         if total <= 0:  # an idle frame: a zero map, not 0/0
             return np.zeros((1, n, m), dtype=np.float32)
-        share = np.multiply.outer(loads[:n] / total, loads[n:])  # in [0, 1]: the clip's floor holds
-        # stress_from_gain in place: p0 expm1(-log1p(-min(f, 1 - 1e-6)) / n)
+        share = np.multiply.outer(loads[:n] / total, loads[n:])  # >= 0: the clip's floor holds
+        # stress_from_gain in place: p0 expm1(-log1p(-min(f, max_share)) / n)
         law = sensor.law
-        np.minimum(share, 1.0 - 1e-6, out=share)
+        np.minimum(share, self.max_share, out=share)
         np.negative(share, out=share)
         np.log1p(share, out=share)
         share *= -1.0 / law.exponent
