@@ -192,6 +192,18 @@ def _evaluate(r: np.ndarray, weights: np.ndarray, t: np.ndarray, integral: bool 
     return out
 
 
+def _ramp_averaged(r: np.ndarray, weights: np.ndarray, t: np.ndarray, ramp: np.ndarray) -> np.ndarray:
+    """:func:`_evaluate`'s step response averaged over step contacts starting in ``[0, ramp]`` of
+    each row (B,): ``(Psi(t) - Psi(t - ramp)) / ramp``; a row with ``ramp = 0`` keeps the step."""
+    step = _evaluate(r, weights, t)
+    smooth = ramp > 0
+    if smooth.any():
+        safe = np.where(smooth, ramp, 1.0)[:, None]
+        integral = _evaluate(r, weights, t, integral=True) - _evaluate(r, weights, t - safe, integral=True)
+        step = np.where(smooth[:, None], integral / safe, step)
+    return step
+
+
 def rational_response(t: np.ndarray, num: np.ndarray, den: np.ndarray) -> np.ndarray:
     """Inverse Laplace transform of ``N(q) / (q^2 D(q))`` (``q = sqrt(s)``) at times ``t >= 0``.
 
@@ -392,13 +404,7 @@ def channel_terms(
         num, num_power, den = part._polynomials()
         r, (w_obj, w_power) = _poles(np.stack([num, _pad_to(num_power, num.shape[1])]), den)
         t_r, ramp_r = tt[rows], ramp[rows]
-        smooth = ramp_r > 0
-        step = _evaluate(r, w_obj, t_r)
-        if smooth.any():
-            safe = np.where(smooth, ramp_r, 1.0)[:, None]
-            integral = _evaluate(r, w_obj, t_r, integral=True) - _evaluate(r, w_obj, t_r - safe, integral=True)
-            step = np.where(smooth[:, None], integral / safe, step)
-        obj[rows] = step
+        obj[rows] = _ramp_averaged(r, w_obj, t_r, ramp_r)
         if ((part.kp > 0) | (part.ki > 0)).any():
             drift[rows] = np.where(t_r > 0, np.nan, t_r)  # undefined: a controlled channel rests before contact
         else:
@@ -476,13 +482,7 @@ def nuisance_terms(
         width = den.shape[1] - 1
         r, (w_flux, w_power) = _poles(np.stack([_pad_to(num_flux, width), _pad_to(num_power, width)]), den)
         t_r, ramp_r = tt[rows], ramp[rows]
-        smooth = ramp_r > 0
-        step = _evaluate(r, w_flux, t_r)
-        if smooth.any():
-            safe = np.where(smooth, ramp_r, 1.0)[:, None]
-            integral = _evaluate(r, w_flux, t_r, integral=True) - _evaluate(r, w_flux, t_r - safe, integral=True)
-            step = np.where(smooth[:, None], integral / safe, step)
-        flux[rows] = step
+        flux[rows] = _ramp_averaged(r, w_flux, t_r, ramp_r)
         for k, delay in enumerate(t_steps):
             d = np.broadcast_to(np.asarray(delay, dtype=np.float64), (b,))[rows]
             steps[k, rows] = _evaluate(r, w_power, t_r - d[:, None])
