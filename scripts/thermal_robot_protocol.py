@@ -115,7 +115,8 @@ def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Na
             "methods": methods,
             "adapt_seconds": seconds,
             "labelled_accuracy": card["metrics"]["labelled_touches"]["values"]["accuracy_by_duration"],
-            "warnings": card["warnings"],
+            # the temporary work folder named in a hint is no path of a reader's machine
+            "warnings": [w.replace(str(work), "WORK") for w in card["warnings"]],
             "n_test": len(data_test),
         }
         print(f"{labelled_session} {channels}: learned {methods['learned']['all']} ({seconds:.0f} s)", flush=True)

@@ -142,8 +142,10 @@ def calibrate_recordings(
     scene = scene_from_fit(result, classes, channels, noise, name=name)
     report = dict(result.report)
     report["classes"] = {n: list(m) for n, m in classes}
+    # the recording's file name only: the report goes into a model card, which never records a
+    # path of the machine it was made on (a labelled folder may also be a temporary selection)
     report["touches"] = [
-        {"file": t.file, "label": t.material, "onset_from": how, **row}
+        {"file": Path(t.file).name, "label": t.material, "onset_from": how, **row}
         for t, how, row in zip(touches, origin, report.pop("per_touch"), strict=True)
     ]
     report["channels_fitted"] = ["heated", "passive"] if has_passive else ["heated"]
