@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 from scipy import special
+from scipy.linalg import lapack
 
 from synth.sensors.thermal import ContactModel, ThermalConfig
 from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS
@@ -38,11 +39,12 @@ _SERIES_TAIL = _G_SERIES[1:].astype(np.complex128)
 _SERIES_HEAD = complex(_G_SERIES[0])
 
 
-def _direct_roots(a1: float, a2: float, a3: float) -> tuple[complex, complex, complex] | None:
+def _direct_roots(a1: float, a2: float, a3: float) -> tuple[float, complex | float, complex | float] | None:
     """The roots of ``q^3 + a1 q^2 + a2 q + a3`` (``a3 != 0``) by the closed form of
     :func:`synth.sensors.thermal.physics._direct_roots` (one real root, the other two by Vieta's
     relations in the form that does not cancel); None where it breaks down (the caller then takes
-    the batch path's solver)."""
+    the batch path's solver). A complex pair is returned as its upper root twice (the caller
+    conjugates the second)."""
     shift = a1 / 3.0
     pp = a2 - a1 * shift
     qq = a3 - shift * a2 + 2.0 * shift**3
@@ -66,9 +68,23 @@ def _direct_roots(a1: float, a2: float, a3: float) -> tuple[complex, complex, co
     d = half * half - prod
     root_d = math.sqrt(abs(d))
     if d < 0:
-        return complex(r1), complex(half, root_d), complex(half, -root_d)
+        upper = complex(half, root_d)
+        return r1, upper, upper
     far = half + math.copysign(root_d, half)
-    return complex(r1), complex(far), complex(prod / far if far != 0 else prod)
+    if far == 0:
+        return None
+    return r1, far, prod / far
+
+
+def _newton(r: complex | float, a1: float, a2: float, a3: float) -> complex | float | None:
+    """Two Newton steps on ``q^3 + a1 q^2 + a2 q + a3`` from ``r`` (the batch path's polish: a
+    root finder's error is relative to the largest root); None at a vanishing derivative."""
+    for _ in range(2):
+        df = (3 * r + 2 * a1) * r + a2
+        if df == 0:
+            return None
+        r = r - (((r + a1) * r + a2) * r + a3) / df
+    return r
 
 
 def one_curve_poles(
@@ -84,15 +100,14 @@ def one_curve_poles(
     roots = _direct_roots(a1, a2, a3)
     if roots is None:
         return None
-    polished = []
-    for r in roots:  # two Newton steps, as the batch path's polish
-        for _ in range(2):
-            df = (3 * r + 2 * a1) * r + a2
-            if df == 0:
-                return None
-            r = r - (((r + a1) * r + a2) * r + a3) / df
-        polished.append(r)
-    p1, p2, p3 = polished
+    pair = roots[1] is roots[2]
+    p1, p2 = _newton(roots[0], a1, a2, a3), _newton(roots[1], a1, a2, a3)
+    if p1 is None or p2 is None:
+        return None
+    # a complex pair stays conjugate under Newton's steps on real coefficients
+    p3 = p2.conjugate() if pair else _newton(roots[2], a1, a2, a3)
+    if p3 is None:
+        return None
     m1, m2, m3 = abs(p1), abs(p2), abs(p3)
     if not (
         cmath.isfinite(p1 + p2 + p3)
@@ -106,25 +121,30 @@ def one_curve_poles(
         return None
     w1 = -h * (e * p1 + ks) / ((3 * c3 * p1 + 2 * c2) * p1 + c1)
     w2 = -h * (e * p2 + ks) / ((3 * c3 * p2 + 2 * c2) * p2 + c1)
-    w3 = -h * (e * p3 + ks) / ((3 * c3 * p3 + 2 * c2) * p3 + c1)
-    return (p1, p2, p3), (w1, w2, w3)
+    w3 = w2.conjugate() if pair else -h * (e * p3 + ks) / ((3 * c3 * p3 + 2 * c2) * p3 + c1)
+    return (complex(p1), complex(p2), complex(p3)), (complex(w1), complex(w2), complex(w3))
 
 
-def _poles(c: float, g: float, params: list[list[float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _poles(
+    c: float, g: float, params: list[list[float]], repeat_first: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Roots, weights and weights over roots (P, 3) of every parameter set ``(e, H, k_s)`` of
-    ``params`` (a weight over a root at 0 is 0: that root's terms are all series, see
-    :func:`_drops`)."""
-    roots, weights = [], []
+    ``params`` (and the first set's once more, last, with ``repeat_first``; a weight over a root
+    at 0 is 0: that root's terms are all series, see :func:`_drops`)."""
+    roots, weights, over = [], [], []
     for e, h, ks in params:
         found = one_curve_poles(c, g, h, e, ks)
         if found is None:  # a near-double root or a failed closed form: the batch path's solver
             r, w = ContactModel.create(c, g, h, e, ks, 1.0, 0.0).poles
             found = (tuple(r.tolist()), tuple(w.tolist()))
-        roots.append(found[0])
-        weights.append(found[1])
-    over = [
-        [w / p if p != 0 else 0j for p, w in zip(ps, ws, strict=True)] for ps, ws in zip(roots, weights, strict=True)
-    ]
+        ps, ws = found
+        roots.append(ps)
+        weights.append(ws)
+        over.append([w / p if p != 0 else 0j for p, w in zip(ps, ws, strict=True)])
+    if repeat_first:
+        roots.append(roots[0])
+        weights.append(weights[0])
+        over.append(over[0])
     return np.array(roots), np.array(weights), np.array(over)
 
 
@@ -150,7 +170,7 @@ def _drops(
     i, k, j = np.nonzero(small)
     if len(i):
         y_small = y[i, k, j]
-        powers = np.cumprod(np.broadcast_to(y_small[:, None], (len(y_small), len(_SERIES_TAIL))), axis=1)
+        powers = np.cumprod(np.repeat(y_small[:, None], len(_SERIES_TAIL), axis=1), axis=1)
         terms[i, k, j] = (powers @ _SERIES_TAIL + _SERIES_HEAD) * (weights[i, j] * root_t[i, k])
     real = terms.real
     out[:, first:] = 1.0 - (1.0 + (real[..., 0] + real[..., 1] + real[..., 2]))
@@ -240,8 +260,9 @@ def fit_one_curve(
     def evaluate(th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The model (W,), ``f`` (W,) and the residuals' forward-difference columns (J, W) at ``th``."""
         moved = th + shift
-        logs = np.exp(moved[:, 2:5]).tolist()
-        f_all = _drops(fs, t, moved[:, 5], *_poles(c, g, logs))
+        # the onset's neighbour (last) has the point's (e, H, k_s): its poles are the point's
+        logs = np.exp(moved[:-1, 2:5]).tolist()
+        f_all = _drops(fs, t, moved[:, 5], *_poles(c, g, logs, repeat_first=True))
         pred_all = th[0] - th[1] * f_all
         pred = pred_all[0]
         return pred, f_all[0], (pred_all[1:] - pred) * col_scale
@@ -285,7 +306,10 @@ def fit_one_curve(
             damp[inactive, :] = 0.0
             damp[:, inactive] = 0.0
             damp[inactive, inactive] = 1.0
-        trial = np.minimum(np.maximum(theta - np.linalg.solve(damp, jtr), lo), hi)
+        _, _, solved, info = lapack.dgesv(damp, jtr)  # LAPACK's solver without numpy's wrapping
+        if info != 0:  # singular (damping makes it regular): numpy's error, as the batch path
+            solved = np.linalg.solve(damp, jtr)
+        trial = np.minimum(np.maximum(theta - solved, lo), hi)
         pred_t, f_t, columns_t = evaluate(trial)
         res_t, cost_t = residuals(trial, pred_t)
         moved_any = math.isfinite(cost_t) and cost_t < cost
