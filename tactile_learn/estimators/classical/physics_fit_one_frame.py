@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import cmath
 import math
+from typing import NamedTuple
 
 import numpy as np
 from scipy import special
@@ -36,7 +37,6 @@ __all__ = ["fit_one_curve", "one_curve_poles", "one_curve_start"]
 
 #: the series' coefficients from y^1 on (its constant term added separately), complex for the product
 _SERIES_TAIL = _G_SERIES[1:].astype(np.complex128)
-_SERIES_HEAD = complex(_G_SERIES[0])
 
 
 def _direct_roots(a1: float, a2: float, a3: float) -> tuple[float, complex | float, complex | float] | None:
@@ -89,9 +89,10 @@ def _newton(r: complex | float, a1: float, a2: float, a3: float) -> complex | fl
 
 def one_curve_poles(
     c: float, g: float, h: float, e: float, ks: float
-) -> tuple[tuple[complex, complex, complex], tuple[complex, complex, complex]] | None:
+) -> tuple[tuple[complex, complex, complex], tuple[complex, complex, complex], bool] | None:
     """Roots and weights ``N(p) / D'(p)`` (``V0 = 1``, ``S = 0``) of
-    :attr:`synth.sensors.thermal.ContactModel.poles` for one parameter set, in Python scalars; None
+    :attr:`synth.sensors.thermal.ContactModel.poles` for one parameter set, in Python scalars, and
+    whether they are a real root and a conjugate pair (first, then upper, then lower); None
     where the closed form fails its check, a root is 0, or two roots lie within the relative gap
     the batch path splits by nudging ``H`` (the caller then takes
     :class:`~synth.sensors.thermal.ContactModel`)."""
@@ -122,58 +123,106 @@ def one_curve_poles(
     w1 = -h * (e * p1 + ks) / ((3 * c3 * p1 + 2 * c2) * p1 + c1)
     w2 = -h * (e * p2 + ks) / ((3 * c3 * p2 + 2 * c2) * p2 + c1)
     w3 = w2.conjugate() if pair else -h * (e * p3 + ks) / ((3 * c3 * p3 + 2 * c2) * p3 + c1)
-    return (complex(p1), complex(p2), complex(p3)), (complex(w1), complex(w2), complex(w3))
+    return (complex(p1), complex(p2), complex(p3)), (complex(w1), complex(w2), complex(w3)), pair
 
 
-def _poles(
-    c: float, g: float, params: list[list[float]], repeat_first: bool = False
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Roots, weights and weights over roots (P, 3) of every parameter set ``(e, H, k_s)`` of
-    ``params`` (and the first set's once more, last, with ``repeat_first``; a weight over a root
-    at 0 is 0: that root's terms are all series, see :func:`_drops`)."""
+#: largest |w / p| for which the terms skip g's series (see _drops)
+_DIRECT_MAX = 1e3
+
+
+class Poles(NamedTuple):
+    """Roots, weights and weights over roots (P, 3) of parameter sets; whether every set is a
+    real root (first) and a conjugate pair (upper, lower); whether some ``|w / p|`` exceeds
+    ``_DIRECT_MAX`` (or ``p = 0``): then the terms near the onset take ``g``'s series."""
+
+    roots: np.ndarray
+    weights: np.ndarray
+    over: np.ndarray
+    pairs: bool
+    series: bool = True
+
+
+def _poles(c: float, g: float, params: list[list[float]], repeat_first: bool = False) -> Poles:
+    """The poles of every parameter set ``(e, H, k_s)`` of ``params`` (and the first set's once
+    more, last, with ``repeat_first``; a weight over a root at 0 is 0: that root's terms are all
+    series, see :func:`_drops`)."""
     roots, weights, over = [], [], []
+    pairs, series = True, False
     for e, h, ks in params:
         found = one_curve_poles(c, g, h, e, ks)
         if found is None:  # a near-double root or a failed closed form: the batch path's solver
             r, w = ContactModel.create(c, g, h, e, ks, 1.0, 0.0).poles
-            found = (tuple(r.tolist()), tuple(w.tolist()))
-        ps, ws = found
+            found = (tuple(r.tolist()), tuple(w.tolist()), False)
+        ps, ws, pair = found
+        pairs = pairs and pair
         roots.append(ps)
         weights.append(ws)
-        over.append([w / p if p != 0 else 0j for p, w in zip(ps, ws, strict=True)])
+        ratios = [w / p if p != 0 else 0j for p, w in zip(ps, ws, strict=True)]
+        series = series or 0 in ps or max(abs(r) for r in ratios) > _DIRECT_MAX
+        over.append(ratios)
     if repeat_first:
         roots.append(roots[0])
         weights.append(weights[0])
         over.append(over[0])
-    return np.array(roots), np.array(weights), np.array(over)
+    return Poles(np.array(roots), np.array(weights), np.array(over), pairs, series)
+
+
+def _series(y: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+    """``g(y)`` by its power series from its coefficients from ``y^1`` on (the powers by one
+    cumulative product)."""
+    powers = np.cumprod(np.repeat(y[:, None], len(coefficients), axis=1), axis=1)
+    return powers @ coefficients + _G_SERIES[0]
 
 
 def _drops(
-    fs: float, t: np.ndarray, t0: np.ndarray, roots: np.ndarray, weights: np.ndarray, over: np.ndarray
+    fs: float,
+    t: np.ndarray,
+    t0: np.ndarray,
+    roots: np.ndarray,
+    weights: np.ndarray,
+    over: np.ndarray,
+    pairs: bool,
+    series: bool = True,
 ) -> np.ndarray:
     """Normalised drops ``f`` (P, W) of the parameter sets with roots, weights and weights over
     roots (P, 3) and onsets ``t0`` (P,), at times ``t = arange(W) / fs``: 0 up to the onset (the
     batch path's ``_drop_fast``).
 
     A root's term ``w sqrt(t) g(y)``, ``y = -p sqrt(t)``, is ``(erfcx(y) - 1) w / p`` (no division
-    per sample), and ``sqrt(t) g(y) w`` by ``g``'s power series where ``|y| < 0.1`` (the difference
-    cancels there; the powers by one cumulative product)."""
+    per sample), and ``sqrt(t) g(y) w`` by ``g``'s power series where ``|y| < 0.1`` when ``series``:
+    near the onset ``erfcx(y) - 1`` cancels, to an absolute error ~``eps |w / p|`` in the term
+    (the batch path's quotient: the same), below 1e-12 of ``V0`` for ``|w / p| <= _DIRECT_MAX``,
+    where the series is left out (its gathers were a third of the calls). With ``pairs`` (a real
+    root and a conjugate pair in every set) the real root takes the real ``erfcx`` and the pair
+    one complex evaluation: ``erfcx`` of the conjugate is the conjugate, so the pair's real part
+    is twice the upper root's (the complex ``erfcx``, ~5x the real one, is most of the model's
+    arithmetic)."""
     n_sets, w = len(t0), len(t)
     out = np.zeros((n_sets, w))
     # the samples before the earliest onset are 0 in every set: the model from one sample before
     # the first after it (rounding of t0 fs); a sample at or before a set's own onset gives 0 below
     first = min(max(math.floor(float(t0.min()) * fs) - 1, 0), w)
     root_t = np.sqrt(np.maximum(t[first:] - t0[:, None], 0.0))  # 0 up to each set's own onset
-    y = roots[:, None, :] * -root_t[:, :, None]  # (P, W', 3)
-    small = np.abs(y) < _SERIES_RADIUS  # every sample up to the onset (y = 0) too
-    terms = (special.erfcx(y) - 1) * over[:, None, :]
-    i, k, j = np.nonzero(small)
-    if len(i):
-        y_small = y[i, k, j]
-        powers = np.cumprod(np.repeat(y_small[:, None], len(_SERIES_TAIL), axis=1), axis=1)
-        terms[i, k, j] = (powers @ _SERIES_TAIL + _SERIES_HEAD) * (weights[i, j] * root_t[i, k])
-    real = terms.real
-    out[:, first:] = 1.0 - (1.0 + (real[..., 0] + real[..., 1] + real[..., 2]))
+    if pairs:
+        y_real = root_t * -roots[:, :1].real  # (P, W')
+        y_pair = root_t * -roots[:, 1:2]
+        total = (special.erfcx(y_real) - 1) * over[:, :1].real
+        pair = (special.erfcx(y_pair) - 1) * over[:, 1:2]
+        for y, terms, column in ((y_real, total, 0), (y_pair, pair, 1)) if series else ():
+            i, k = np.nonzero(np.abs(y) < _SERIES_RADIUS)  # every sample up to the onset (y = 0) too
+            tail = _SERIES_TAIL.real if column == 0 else _SERIES_TAIL
+            scale = weights[i, column] * root_t[i, k]
+            terms[i, k] = _series(y[i, k], tail) * (scale.real if column == 0 else scale)
+        total += 2.0 * pair.real
+    else:
+        y3 = roots[:, None, :] * -root_t[:, :, None]  # (P, W', 3)
+        terms3 = (special.erfcx(y3) - 1) * over[:, None, :]
+        if series:
+            i, k, j = np.nonzero(np.abs(y3) < _SERIES_RADIUS)
+            terms3[i, k, j] = _series(y3[i, k, j], _SERIES_TAIL) * (weights[i, j] * root_t[i, k])
+        real = terms3.real
+        total = real[..., 0] + real[..., 1] + real[..., 2]
+    out[:, first:] = 1.0 - (1.0 + total)
     return out
 
 

@@ -66,7 +66,9 @@ def test_a_double_root_is_left_to_the_contact_model() -> None:
     c = h * h / 18.0
     g = 5.0 * c - h
     assert one.one_curve_poles(c, g, h, 1.0, ks) is None
-    roots, weights, _ = one._poles(c, g, [[1.0, h, ks]])
+    poles = one._poles(c, g, [[1.0, h, ks]])
+    roots, weights = poles.roots, poles.weights
+    assert not poles.pairs
     expect = ContactModel.create(c, g, h, 1.0, ks, 1.0, 0.0).poles
     assert np.array_equal(roots[0], expect[0]) and np.array_equal(weights[0], expect[1])
 
@@ -79,9 +81,15 @@ def test_one_curve_drops_are_the_batch_models() -> None:
     t = np.arange(125) / fs
     rng = np.random.default_rng(5)
     t0 = rng.uniform(-1.0 / fs, 2.4, len(c))
+    paired = 0
     for i in range(len(c)):
         params = [[e[i], h[i], ks[i]], [e[i] * 1.0001, h[i], ks[i]]]
-        ours = one._drops(fs, t, np.array([t0[i], t0[i] + 0.0004]), *one._poles(c[i], g[i], params))
+        poles = one._poles(c[i], g[i], params)
+        ours = one._drops(fs, t, np.array([t0[i], t0[i] + 0.0004]), *poles)
+        if poles.pairs:  # a real root and a conjugate pair: the same as the three roots summed
+            general = one._drops(fs, t, np.array([t0[i], t0[i] + 0.0004]), *poles[:3], False)
+            np.testing.assert_allclose(ours, general, rtol=0, atol=1e-14)
+            paired += 1
         ref = contact_drop(
             t[None, :] - np.array([[t0[i]], [t0[i] + 0.0004]]),
             np.full(2, c[i]),
@@ -92,6 +100,7 @@ def test_one_curve_drops_are_the_batch_models() -> None:
         )
         np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-12)
         assert (ours[:, : max(math.floor(t0[i] * fs), 0)] == 0).all()
+    assert 0 < paired < len(c)  # both kinds of sets (three real roots: the general sum)
 
 
 def test_poles_fall_back_to_the_contact_model(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -100,8 +109,9 @@ def test_poles_fall_back_to_the_contact_model(monkeypatch: pytest.MonkeyPatch) -
     direct = one._poles(c[0], g[0], params)
     monkeypatch.setattr(one, "one_curve_poles", lambda *args: None)
     fallback = one._poles(c[0], g[0], params)
-    for ours, theirs in zip(direct, fallback, strict=True):
+    for ours, theirs in zip(direct[:3], fallback[:3], strict=True):
         np.testing.assert_allclose(ours, theirs, rtol=1e-9)
+    assert direct.pairs and not fallback.pairs  # the fallback's roots go through the general sum
 
 
 @pytest.mark.parametrize("scene_name", ["thermal", "robot", "no_spreading"])
