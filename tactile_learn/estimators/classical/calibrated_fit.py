@@ -29,7 +29,6 @@ from synth.scene import Scene
 from synth.sensors.thermal import ThermalConfig, spreading_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
 from tactile_learn.estimators.base import Classifier
-from tactile_learn.estimators.classical.calibrated_one_frame import one_frame_bases, screened_residuals
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
 from tactile_learn.validation.thermal import thermal_check
 
@@ -39,8 +38,6 @@ __all__ = ["CalibratedFitEstimator"]
 MODEL_ERROR_K = 0.01
 #: grid step (s) of the contact start searched over the window
 STEP_S = 0.2
-#: longest input (samples, channels end to end) whose batch-1 call takes the float32 screen
-SCREEN_MAX_SAMPLES = 512
 
 
 def _mid(bounds: tuple[float, float], log: bool = False) -> float:
@@ -66,10 +63,6 @@ class CalibratedFitEstimator(Classifier):
             self.input_check_ = thermal_check(self.scene.sensor)
             self.templates_ = self._templates()
             self.projections_ = self._projections()
-            q, class_start, n_columns, _ = self.projections_
-            # the screen's bound grows with the window's length: for long windows (the robot's 2 x
-            # 600 samples) it admits hundreds of designs, and the float64 product is faster
-            self.one_frame_ = one_frame_bases(q, class_start, n_columns) if len(q) <= SCREEN_MAX_SAMPLES else None
         return self
 
     def _templates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -226,30 +219,24 @@ class CalibratedFitEstimator(Classifier):
         return softmax(scores)
 
     def _predict_one(self, y: np.ndarray) -> np.ndarray:
-        """:meth:`_predict` of one curve ``y`` (C W,), channels end to end: the residuals by a
-        float32 screen and float64 where a class can matter
-        (:mod:`~tactile_learn.estimators.classical.calibrated_one_frame`; inputs up to
-        ``SCREEN_MAX_SAMPLES``), else the batch's float64 product, without the batch's reshapes
-        and chunking."""
+        """:meth:`_predict` of one curve ``y`` (C W,), channels end to end: the same operations in
+        the same order (the residual sums of squares to the bit of a batch's row, but for the
+        matrix-vector product's summation order), without the batch's reshapes and chunking."""
         q, class_start, n_columns, centred = self.prepared_state("projections_")
-        sigma = max(self.scene.sensor.readout.noise_k, MODEL_ERROR_K)
-        unit = 2 * sigma**2
-        d = y - np.add.reduce(y) / len(y) if centred else y  # the batch's mean, to the bit
-        bases = self.prepared_state("one_frame_")
-        if bases is not None:
-            class_min, lines = screened_residuals(d, bases, class_start, unit, NONE_BONUS)
-        else:  # the batch path's float64 residuals
-            squares = d @ q
-            squares *= squares
-            by_design = squares.reshape(-1, n_columns)
-            rss = np.einsum("i,i->", d, d) - by_design[:, 0]
-            for column in range(1, n_columns):
-                rss -= by_design[:, column]
-            class_min, lines = np.minimum.reduceat(rss[:-1], class_start), float(rss[-1])
+        if centred:
+            y = y - y.mean(keepdims=True)
+        squares = y @ q
+        squares *= squares
+        by_design = squares.reshape(-1, n_columns)
+        rss = np.einsum("i,i->", y, y) - by_design[:, 0]
+        for column in range(1, n_columns):
+            rss -= by_design[:, column]
+        np.maximum(rss, 0.0, out=rss)
         scores = np.empty((1, len(class_start) + 1))
-        np.maximum(class_min, 0.0, out=scores[0, :-1])  # rounding can take a residual below 0
-        scores[0, -1] = max(lines, 0.0)
-        scores *= -1.0 / unit
+        np.minimum.reduceat(rss[:-1], class_start, out=scores[0, :-1])
+        scores[0, -1] = rss[-1]
+        sigma = max(self.scene.sensor.readout.noise_k, MODEL_ERROR_K)
+        scores *= -1.0 / (2 * sigma**2)
         scores[0, -1] += NONE_BONUS
         return softmax(scores).astype(np.float32)
 
