@@ -223,22 +223,27 @@ class CalibratedFitEstimator(Classifier):
         the same order (the residual sums of squares to the bit of a batch's row, but for the
         matrix-vector product's summation order), without the batch's reshapes and chunking."""
         q, class_start, n_columns, centred = self.prepared_state("projections_")
-        if centred:
-            y = y - y.mean(keepdims=True)
+        if centred:  # numpy's mean (sum, then over n) without its wrapper: the batch's to the bit
+            y = y - np.add.reduce(y) / len(y)
         squares = y @ q
         squares *= squares
         by_design = squares.reshape(-1, n_columns)
         rss = np.einsum("i,i->", y, y) - by_design[:, 0]
         for column in range(1, n_columns):
             rss -= by_design[:, column]
-        np.maximum(rss, 0.0, out=rss)
         scores = np.empty((1, len(class_start) + 1))
         np.minimum.reduceat(rss[:-1], class_start, out=scores[0, :-1])
         scores[0, -1] = rss[-1]
+        # the clamp at 0 after each class's minimum (the same numbers: both are monotone)
+        np.maximum(scores, 0.0, out=scores)
         sigma = max(self.scene.sensor.readout.noise_k, MODEL_ERROR_K)
         scores *= -1.0 / (2 * sigma**2)
         scores[0, -1] += NONE_BONUS
-        return softmax(scores).astype(np.float32)
+        # softmax of one row (curve_match.softmax's operations, without its axis handling)
+        scores -= scores.max()
+        np.exp(scores, out=scores)
+        scores /= scores.sum()
+        return scores.astype(np.float32)
 
 
 def _column_bases(designs: np.ndarray) -> tuple[np.ndarray, int, bool]:
