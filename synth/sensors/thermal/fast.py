@@ -20,29 +20,15 @@ gives the same curve (to ~1e-12 K) from far less work:
 * **real roots** (the fast interface mode, ``p`` of -10 to -2000 s^-1/2) take the *real* ``erfcx``
   (about 6x cheaper than the complex one), with the series near ``y = 0`` as in ``phi``;
 * anything else (a complex root with a large ``|p| sqrt t``, a metal's pair) takes the complex
-  ``erfcx``, once per conjugate pair.
+  ``erfcx``, once per conjugate pair, by :func:`~synth.sensors.thermal.faddeeva.erfcx_right`
+  (Weideman's rational series in numpy, ~30 ns a value against scipy's ~120-180 ns; scipy's
+  values to ~3e-14 relative, the mathematical function to ~1e-15).
 
 Everything stays float64: the series is truncated where its next term is below 1e-17 of ``g``,
 so the curve differs from the reference only by rounding (the test bounds it at 1e-9 K), and
 readings after noise and the 0.01 K ADC are byte-identical in practice (checked in the tests on
 the shipped scenes). float32 was measured for the Horner step: it saves little (the step is a
 small share of the time) and moves the ADC's rounding, so it is not used.
-
-What is left (``thermal`` scene, 1024-touch chunks, CPU time per touch on a shared 2-core machine:
-~270-300 us in all, shares from a profile): the complex ``erfcx`` of metals' pairs (~460
-evaluations at 110-200 ns each, about a third; evaluated only where ``|y| >= 0.1``: the padding
-and the samples the series replaces are skipped), the readout's normal draws (the same stream,
-~10 ns each, about a sixth), the folded series (Horner, 19-37 terms on the samples of pixels with
-series roots, about an eighth), the real ``erfcx`` (~5 %), the roots (closed form, ~1 us per pixel
-where LAPACK's 3 x 3 ``eigvals`` took ~2.5 us; ~3 %), and gathers, scatters and the recovery the
-rest. The whole-record path spends ~3,000-4,000 us. Measured and not kept: finer or coarser reach
-bins and other block sizes (no difference beyond the machine's noise). Not done, with the reason:
-a cheaper complex ``erfcx`` in numpy. The metals' arguments are close to the real axis of the
-Faddeeva function (``w(i y)``), where exact-to-rounding forms (Taylor steps from tabulated nodes,
-Weideman's rational form, continued fractions) need, by our estimate (not built), 15-40 complex
-operations per value, each a numpy pass of 2-4 ns a value: no cheaper than scipy's compiled
-evaluation. scipy's ``erfcx`` with ``where=`` crashed on complex input (scipy 1.17), so the
-skipped samples are gathered out instead.
 """
 
 from __future__ import annotations
@@ -52,6 +38,7 @@ import math
 import numpy as np
 from scipy import special
 
+from synth.sensors.thermal.faddeeva import erfcx_right
 from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
@@ -94,9 +81,8 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
     same number (to rounding), and dividing the row's weight by ``p`` once replaces a division by
     ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). ``erfcx`` is
     evaluated only where ``|y| >= _SERIES_RADIUS``: below it (and at the padding's ``s = 0``) the
-    series of ``g`` takes over, so the complex ``erfcx`` (~200 ns each) runs only on the samples
-    that keep its value (scipy's ``erfcx`` ufunc with ``where=`` on complex input crashed here,
-    scipy 1.17: a gather and a scatter instead).
+    series of ``g`` takes over, so the complex ``erfcx`` (:func:`erfcx_right`) runs only on the
+    samples that keep its value.
     """
     size = np.abs(p)
     y = -p[:, None] * s
@@ -113,7 +99,7 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
     else:
         at = ~small
         ex = np.zeros_like(y)
-        ex[at] = special.erfcx(y[at]) - 1.0
+        ex[at] = erfcx_right(y[at]) - 1.0
         excess = _real_part(wp, ex)
     near = small & (s > 0)
     if near.any():
