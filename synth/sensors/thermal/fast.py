@@ -122,7 +122,7 @@ def _real_part(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 _BIN_TERMS = {high: series_terms(high) for high in _REACH_BINS}
 
 #: pixels per block of :func:`record_excess`: its temporaries (pixels x samples) stay in cache
-_BLOCK_ROWS = 256
+_BLOCK_ROWS = 512
 
 
 def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.ndarray) -> np.ndarray:
