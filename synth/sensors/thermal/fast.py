@@ -79,33 +79,31 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
 
     ``phi = (erfcx(y) - 1) / p`` with ``y = -p s``: the reference's ``s (1 - erfcx(y)) / y`` is the
     same number (to rounding), and dividing the row's weight by ``p`` once replaces a division by
-    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). ``erfcx`` is
-    evaluated only where ``|y| >= _SERIES_RADIUS``: below it (and at the padding's ``s = 0``) the
-    series of ``g`` takes over, so the complex ``erfcx`` (:func:`erfcx_right`) runs only on the
-    samples that keep its value.
+    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). The
+    ``erfcx`` is evaluated on every sample (``|p| sqrt(tau)`` of these roots exceeds
+    :data:`SERIES_RADIUS`: a gather of the few small ones would cost more than it saves); near
+    ``y = 0`` only the relative accuracy of ``erfcx(y) - 1`` suffers, the absolute one (what the
+    curve needs) stays ~1e-16 ``|w / p|``. The complex roots' ``|y| < 0.1`` (at most the first
+    sample after the onset, and the padding) still take ``g``'s series, as in ``phi``.
     """
     size = np.abs(p)
     y = -p[:, None] * s
-    # |y| < radius where s < radius / |p|; s = 0 (padding, or a release at the onset): phi = 0
-    small = s < (_SERIES_RADIUS / np.maximum(size, 1e-300))[:, None]
-    # a root at 0 is always "small" (its limit is infinite), so the weight over p is never used there
-    wp = w / np.where(size > 0, p, 1.0)
-    if small.all():
-        excess = np.zeros(y.shape)
-    elif not small.any() or not np.iscomplexobj(y):
-        # the real erfcx (~10 ns) costs less than a gather and a scatter: everywhere, the series
-        # overwrites below (at s = 0 it gives erfcx(0) - 1 = 0 exactly, as phi(p, 0) = 0)
-        excess = _real_part(wp, special.erfcx(y) - 1.0)
-    else:
-        at = ~small
-        ex = np.zeros_like(y)
-        ex[at] = erfcx_right(y[at]) - 1.0
-        excess = _real_part(wp, ex)
-    near = small & (s > 0)
-    if near.any():
-        rows, cols = np.nonzero(near)
-        sn = s[rows, cols]
-        excess[rows, cols] = _real_part(w[rows], _g_series(y[rows, cols])) * sn
+    wp = w / p  # p != 0: a root at 0 reaches 0, so it is always summed by the series
+    if not np.iscomplexobj(y):
+        # erfcx(0) = 1 exactly, and near y = 0 the difference erfcx(y) - 1 ~ -2 y / sqrt(pi) loses
+        # relative, not absolute accuracy: |w / p| 1e-16 K at most, so no series is needed here
+        excess = special.erfcx(y)
+        excess -= 1.0
+        excess *= wp[:, None]
+        return excess
+    excess = _real_part(wp, erfcx_right(y) - 1.0)
+    # |y| < 0.1 (the first sample after an onset at most, and the padding's s = 0, where phi = 0):
+    # the series of g, as in phi (erfcx_right(0) is 1 only to rounding)
+    small = np.flatnonzero(s < (_SERIES_RADIUS / size)[:, None])
+    if len(small):
+        rows = small // s.shape[1]
+        flat_s = s.reshape(-1)[small]
+        excess.reshape(-1)[small] = _real_part(w[rows], _g_series(y.reshape(-1)[small])) * flat_s
     return excess
 
 
