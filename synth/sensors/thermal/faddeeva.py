@@ -30,7 +30,7 @@ import math
 import numpy as np
 from scipy import special
 
-__all__ = ["erfcx_right"]
+__all__ = ["erfcx_minus_one_real", "erfcx_right"]
 
 #: terms of Weideman's polynomial (N = 36 already reaches ~5e-15 with a tuned L; 40 with the
 #: paper's L reaches ~1e-15 for ~10 % more work)
@@ -58,7 +58,7 @@ _COEF = _weideman_coefficients(_TERMS, _L)
 
 
 def _weideman(y: np.ndarray, out: np.ndarray) -> None:
-    """``erfcx(y)`` by the rational series into ``out`` (both 1-D complex, ``Re y >= 0``)."""
+    """``erfcx(y)`` by the rational series into ``out`` (complex, ``y``'s shape, ``Re y >= 0``)."""
     inv = np.add(y, _L)
     np.divide(1.0, inv, out=inv)  # 1 / (L + y): one complex division, products from here on
     z = np.subtract(_L, y)
@@ -74,18 +74,46 @@ def _weideman(y: np.ndarray, out: np.ndarray) -> None:
     acc *= inv
 
 
+def _erfcx_into(y: np.ndarray, out: np.ndarray) -> None:
+    """``erfcx(y)`` into ``out``: the rational series, or scipy where it does not hold."""
+    with np.errstate(invalid="ignore", over="ignore"):  # NaN/inf inputs: replaced below
+        _weideman(y, out)
+    if y.size == 0:
+        return
+    # the formula holds in the right half-plane only; NaN, inf and |y| >= 1e100 (where 1/(L + y)^2
+    # would underflow) get scipy's answer (no such argument occurs in the simulator). Reductions
+    # first (NaN fails them): the usual chunk needs no mask
+    if y.real.min() >= 0 and max(np.abs(y.real).max(), np.abs(y.imag).max()) < _LARGE:
+        return
+    other = ~(y.real >= 0) | ~(np.abs(y) < _LARGE)
+    out[other] = special.erfcx(y[other])
+
+
 def erfcx_right(y: np.ndarray) -> np.ndarray:
     """``scipy.special.erfcx(y)`` for complex ``y`` (any shape), to ~1e-15 relative where
     ``Re y >= 0`` (see the module docstring); other values are passed to scipy."""
     y = np.asarray(y, dtype=np.complex128)
     flat = y.reshape(-1)
     out = np.empty(flat.shape, dtype=np.complex128)
-    with np.errstate(invalid="ignore", over="ignore"):  # NaN/inf inputs: replaced below
-        for start in range(0, len(flat), _CHUNK):
-            _weideman(flat[start : start + _CHUNK], out[start : start + _CHUNK])
-    # the formula holds in the right half-plane only; NaN, inf and |y| >= 1e100 (where 1/(L + y)^2
-    # would underflow) get scipy's answer (no such argument occurs in the simulator)
-    other = ~(flat.real >= 0) | ~(np.abs(flat) < _LARGE)
-    if other.any():
-        out[other] = special.erfcx(flat[other])
+    for start in range(0, len(flat), _CHUNK):
+        _erfcx_into(flat[start : start + _CHUNK], out[start : start + _CHUNK])
     return out.reshape(y.shape)
+
+
+def erfcx_minus_one_real(y: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """``Re(weight (erfcx(y) - 1))`` (rows, n) for complex ``y`` (rows, n) and a complex weight per
+    row (rows,): :func:`erfcx_right` with the weighting done while a chunk of rows is in cache."""
+    y = np.asarray(y, dtype=np.complex128)
+    weight = np.asarray(weight, dtype=np.complex128)
+    if y.ndim != 2 or weight.shape != y.shape[:1]:
+        raise ValueError(f"expected y (rows, n) and weight (rows,), got {y.shape} and {weight.shape}")
+    result = np.empty(y.shape)
+    step = max(1, _CHUNK // max(1, y.shape[1]))
+    scratch = np.empty((min(step, len(y)), y.shape[1]), dtype=np.complex128)
+    for start in range(0, len(y), step):
+        part = scratch[: len(y[start : start + step])]
+        _erfcx_into(y[start : start + step], part)
+        part -= 1.0
+        part *= weight[start : start + step, None]
+        result[start : start + step] = part.real
+    return result

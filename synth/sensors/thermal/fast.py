@@ -38,7 +38,7 @@ import math
 import numpy as np
 from scipy import special
 
-from synth.sensors.thermal.faddeeva import erfcx_right
+from synth.sensors.thermal.faddeeva import erfcx_minus_one_real
 from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
@@ -96,7 +96,7 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
         excess -= 1.0
         excess *= wp[:, None]
         return excess
-    excess = _real_part(wp, erfcx_right(y) - 1.0)
+    excess = erfcx_minus_one_real(y, wp)
     # |y| < 0.1 (the first sample after an onset at most, and the padding's s = 0, where phi = 0):
     # the series of g, as in phi (erfcx_right(0) is 1 only to rounding)
     small = np.flatnonzero(s < (_SERIES_RADIUS / size)[:, None])

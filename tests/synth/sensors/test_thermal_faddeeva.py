@@ -8,7 +8,7 @@ from scipy import special
 
 from synth.scene import load_scene
 from synth.sensors.thermal import make_simulator
-from synth.sensors.thermal.faddeeva import erfcx_right
+from synth.sensors.thermal.faddeeva import erfcx_minus_one_real, erfcx_right
 from synth.sensors.thermal.physics import ContactModel
 
 
@@ -46,6 +46,22 @@ def test_erfcx_right_keeps_shape_and_hands_the_rest_to_scipy() -> None:
     np.testing.assert_array_equal(got.ravel()[1:], ref.ravel()[1:])
     assert abs(got[0, 0] - ref[0, 0]) < 5e-14 * abs(ref[0, 0])
     assert erfcx_right(np.zeros(0, dtype=np.complex128)).shape == (0,)
+
+
+def test_erfcx_minus_one_real_is_the_weighted_real_part() -> None:
+    """Rows of several chunks (and a left half-plane value, which goes to scipy), weights per row."""
+    rng = np.random.default_rng(6)
+    rows, n = 700, 130
+    y = rng.uniform(0.0, 10.0, (rows, n)) * np.exp(-1j * rng.uniform(0.0, np.pi / 2, (rows, n)))
+    y[3, 5] = -2.0 + 1.0j
+    weight = rng.normal(size=rows) + 1j * rng.normal(size=rows)
+    got = erfcx_minus_one_real(y, weight)
+    ref = (weight[:, None] * (special.erfcx(y) - 1.0)).real
+    assert got.shape == (rows, n) and got.dtype == np.float64
+    scale = np.abs(weight)[:, None] * (np.abs(special.erfcx(y)) + 1.0)
+    assert (np.abs(got - ref) / scale).max() < 5e-14
+    with pytest.raises(ValueError, match="weight"):
+        erfcx_minus_one_real(y, weight[:-1])
 
 
 @pytest.mark.parametrize("name", ["thermal", "thermal_wns"])
