@@ -39,7 +39,7 @@ import numpy as np
 from scipy import special
 
 from synth.sensors.thermal.faddeeva import erfcx_minus_one_real
-from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
+from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
 
@@ -179,6 +179,27 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
     return total
 
 
+def _recovery(
+    dt: np.ndarray, v_release: np.ndarray, source: np.ndarray, cap: np.ndarray, loss: np.ndarray
+) -> np.ndarray:
+    """:func:`~synth.sensors.thermal.physics.recovery_excess` (rows, samples) for per-row ``v_release``,
+    ``P``, ``C``, ``G``: ``v = v_r - (P / G - v_r) expm1(-G dt / C)`` (the same number: ``phi1(x) x =
+    -expm1(-x)``), four passes over the samples instead of a dozen; ``G = 0`` (the seed's model)
+    rows rise linearly, ``v_r + P dt / C``."""
+    held = loss > 0
+    rate = loss / cap
+    # per-row factor (P - G v_r) / G; 0 where G = 0 (those rows get their linear rise below)
+    factor = np.divide(source - loss * v_release, loss, out=np.zeros_like(loss), where=held)
+    rec = np.multiply(dt, -rate[:, None])
+    np.expm1(rec, out=rec)
+    rec *= -factor[:, None]
+    rec += v_release[:, None]
+    if not held.all():
+        still = np.flatnonzero(~held)
+        rec[still] += dt[still] * (source[still] / cap[still])[:, None]
+    return rec
+
+
 def record_excess(time_s: np.ndarray, model: ContactModel, onset: np.ndarray, release: np.ndarray) -> np.ndarray:
     """The whole-record excess (B, R) of :func:`~synth.sensors.thermal.touch_excess` (float64) for
     a flat batch ``model`` (B,) at the record's sample times ``time_s`` (R,), increasing: ``V0``
@@ -241,6 +262,6 @@ def _record_block(
         valid = cols_r[None, :] < after[:, None]
         dt = padded_t[np.minimum(idx_r, n_t)] - release[:, None]
         dt[~valid] = 0.0
-        rec = recovery_excess(dt, curve[:, -1:], source[:, None], cap[:, None], loss[:, None])
+        rec = _recovery(dt, curve[:, -1], source, cap, loss)
         flat[row_start + np.where(valid, idx_r, n_t)] = rec
     return buffer[:, :n_t]
