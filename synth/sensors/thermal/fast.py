@@ -18,7 +18,8 @@ gives the same curve (to ~1e-12 K) from far less work:
   ``erfcx``. In the seed's sensor the complex pair is the pixel's own slow mode (``|p| ~
   sqrt(G / C) ~ 0.35 s^-1/2``), so the pair always takes this path;
 * **real roots** (the fast interface mode, ``p`` of -10 to -2000 s^-1/2) take the *real* ``erfcx``
-  (about 6x cheaper than the complex one), with the series near ``y = 0`` as in ``phi``;
+  (about 6x cheaper than the complex one) on every sample: near ``y = 0`` ``erfcx(y) - 1`` loses
+  relative accuracy only, its absolute error (~1e-16 ``|w / p|`` K) is what the curve sees;
 * anything else (a complex root with a large ``|p| sqrt t``, a metal's pair) takes the complex
   ``erfcx``, once per conjugate pair, by :func:`~synth.sensors.thermal.faddeeva.erfcx_right`
   (Weideman's rational series in numpy, ~30 ns a value against scipy's ~120-180 ns; scipy's
@@ -29,6 +30,17 @@ so the curve differs from the reference only by rounding (the test bounds it at 
 readings after noise and the 0.01 K ADC are byte-identical in practice (checked in the tests on
 the shipped scenes). float32 was measured for the Horner step: it saves little (the step is a
 small share of the time) and moves the ADC's rounding, so it is not used.
+
+What is left (``thermal`` scene, 1024-touch chunks, shares of a profile on the shared 2-core
+machine, ~200 us of CPU per touch in all): the readout's normal draws, a third (5,200 per touch at
+~14 ns: numpy's generator, kept so that the bytes are the reference's); the real ``erfcx`` (~1,250
+values per touch), the complex one (~400 values, Weideman) and the folded series (Horner, 19-37
+terms on the series pixels' samples), about a tenth each; the roots and weights (closed form), the
+gathers and scatters of the per-pixel grids, the recovery and Python's per-block overhead the rest.
+Blocks are large (512 pixels here, ~250 touches in :class:`~synth.sensors.thermal.ThermalModel`)
+because at ~150 numpy calls per block the calls' own cost is not small. Measured and not kept:
+the series' Horner in a transposed (samples, pixels) layout (slower: the per-row coefficient is
+a broadcast add either way), filling only the untouched pixels' steady state (no difference).
 """
 
 from __future__ import annotations
