@@ -99,15 +99,19 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
     sample after the onset, and the padding) still take ``g``'s series, as in ``phi``.
     """
     size = np.abs(p)
-    y = -p[:, None] * s
     wp = w / p  # p != 0: a root at 0 reaches 0, so it is always summed by the series
-    if not np.iscomplexobj(y):
+    if not np.iscomplexobj(p):
         # erfcx(0) = 1 exactly, and near y = 0 the difference erfcx(y) - 1 ~ -2 y / sqrt(pi) loses
         # relative, not absolute accuracy: |w / p| 1e-16 K at most, so no series is needed here
-        excess = special.erfcx(y)
+        excess = np.multiply(s, -p[:, None])
+        special.erfcx(excess, out=excess)
         excess -= 1.0
         excess *= wp[:, None]
         return excess
+    # y = -p s by its real and imaginary halves (a complex p times a real s would first cast s)
+    y = np.empty(s.shape, dtype=np.complex128)
+    np.multiply(s, -p.real[:, None], out=y.real)
+    np.multiply(s, -p.imag[:, None], out=y.imag)
     excess = erfcx_minus_one_real(y, wp)
     # |y| < 0.1 (the first sample after an onset at most, and the padding's s = 0, where phi = 0):
     # the series of g, as in phi (erfcx_right(0) is 1 only to rounding)
@@ -171,7 +175,7 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
                 acc *= sr
                 acc += row_coef[m]
             acc *= sr
-            total[rows] += acc
+            total[rows] = acc  # the bins' rows are disjoint and total is 0 there: no gather and add
     # a complex root's conjugate (the cubic's coefficients are real) carries the conjugate weight
     # (exactly: the same arithmetic on conjugate inputs): Re(w phi) of the pair is twice the one's
     conj = np.conj(r)
