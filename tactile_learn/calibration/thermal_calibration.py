@@ -31,7 +31,10 @@ press is never the same twice: a real user's touches have their own contact; wea
 to the shared one, with which they trade off), with a Jacobian that steps all touches' own
 parameters at once (each moves its own touch's rows only). Optional per-touch nuisance terms
 (``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
-object's flux (its temperature not uniform with depth) and the heater's power steps.
+object's flux (its temperature not uniform with depth), the heater's power steps, and a contact
+precursor (part of the contact arriving over the ``PRECURSOR_S`` before it, one amplitude per
+channel). Optional too (``noise_weighted``): the joint refinement in units of each sample's noise
+s.d. (the maximum-likelihood fit in the unit the residual is reported in) with weak linear priors.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
@@ -281,10 +284,14 @@ class _Problem:
         self.nuisance_columns = [
             *(["object_flux_w_m2"] if "object_flux" in self.nuisance else []),
             *(["heater_step_at_contact_w_m2", "heater_step_at_off_w_m2"] if "heater_steps" in self.nuisance else []),
-            *(["heated_precursor_k", "passive_precursor_k"] if "contact_precursor" in self.nuisance else []),
+            *(["heated_precursor_k"] if "contact_precursor" in self.nuisance else []),
         ]
         self.n = len(touches)
         self.passive = all(t.passive is not None for t in touches)
+        if "contact_precursor" in self.nuisance and self.passive:
+            self.nuisance_columns.append("passive_precursor_k")
+        #: the joint refinement fits in noise units (see NOISE_WEIGHTED)
+        self.noise_weighted = noise is not None
         self.heater_off = heater_off
         self.length = max(len(t.t) for t in touches)
         n, w = self.n, self.length
@@ -361,6 +368,7 @@ class _Problem:
         if noise is not None:  # data rows in noise units: the priors' rows weak beside them
             twin.prior_row_k = PRIOR_ROW_TOUCH_K
             twin.weight = twin._noise_weights(noise)
+            twin.noise_weighted = True
         return twin
 
     @property
@@ -812,7 +820,14 @@ def _report(
         "per_touch": per_touch,
         "noise": noise,
         "residual": residual,
-        "solver": {"evaluations": evaluations, "seconds": seconds, "status": int(fit.status), "cost": float(fit.cost)},
+        "solver": {
+            "evaluations": evaluations,
+            "seconds": seconds,
+            "status": int(fit.status),
+            "cost": float(fit.cost),
+            # the refinement's samples weighed by 1 / their noise s.d. (else all alike, in K)
+            "noise_weighted": bool(problem.noise_weighted),
+        },
     }
 
 

@@ -98,3 +98,14 @@ def test_precursor_amplitude_is_recovered(
     # and nothing left beyond the noise
     for c, ch in enumerate(("heated", "passive")):
         assert np.sqrt(np.mean(res[c][problem.mask] ** 2)) < 2.0 * noise[ch]["white_k"]
+
+
+def test_heated_only_touches_get_one_precursor_column(
+    simulated: tuple[list[FitTouch], dict[str, dict[str, float]]],
+) -> None:
+    touches, _ = simulated
+    heated_only = [FitTouch(t.file, t.label, t.t, t.heated, None, t.onset_s) for t in touches]
+    problem = _Problem(heated_only, CLASSES, True, ("contact_precursor",))
+    assert problem.nuisance_columns == ["heated_precursor_k"]
+    _, sol, _ = problem.solve(problem.start())
+    assert sol.shape == (len(touches), 2 + 1 + 1) and np.isfinite(sol).all()
