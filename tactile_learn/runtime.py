@@ -219,14 +219,7 @@ class OnnxEstimator(Estimator):
         """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`)."""
         self.prepared_state("run_")  # a model not prepared fails before the input is looked at
         one = self.frame_check_
-        if (
-            one is not None
-            and type(X) is np.ndarray
-            and X.shape == one.batch_shape
-            and X.dtype == np.float32
-            and X.flags.c_contiguous
-            and one.verdict(X)
-        ):  # a plain valid frame: the full check would return it as it is
+        if one is not None and one.plain_verdict(X):  # a plain valid frame: the full check would pass it as it is
             return self.predict_checked(X)
         return self.predict_checked(self._checked(X))
 
