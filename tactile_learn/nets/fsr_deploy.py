@@ -1,15 +1,17 @@
 """The FSR network as exported: :class:`~tactile_learn.nets.fsr.FsrNet`'s function in fewer ONNX nodes.
 
-At batch 1 an onnxruntime node costs about as much as a 256 x 256 product (~0.5-1 us): the graph
-exported from :class:`FsrNet` has 36 nodes, 14 of them slices, scalings and concatenations around
-the network's five outputs and 9 for the features. :class:`LeanFsrNet` computes the same function
-with 22 (onnxruntime fuses each SiLU into one node):
+At batch 1 every onnxruntime node has a fixed cost (~0.5 us, whatever it computes): the graph
+exported from :class:`FsrNet` has 36 nodes (28 once onnxruntime fuses each SiLU), 14 of them
+slices, scalings and concatenations around the network's five outputs and 9 for the features.
+:class:`LeanFsrNet` computes the same function in 26 (22 fused):
 
 - the features' standardisation ``(x - mean) / std`` is folded into the first layer's weights
   (``W / std``, ``b - W mean / std``);
 - the outputs' scalings (``x, y`` by the film's half size, the log force by its standard deviation
   plus its mean) are folded into the last layer's rows;
-- the five raw outputs are split once (position, log force, two logits) instead of sliced twice.
+- the five raw outputs are split once (position, log force, two logits) instead of sliced twice;
+- the probabilities are capped at 1 (one node more than the network has: onnxruntime's Sigmoid
+  gave 1 + 1 ulp for a large logit).
 
 The folded weights are formed in float64 and rounded once; the exported graph's outputs agree with
 :class:`FsrNet`'s to float32 rounding (the export's parity check; tests). Training, the loss and the
@@ -70,5 +72,7 @@ class LeanFsrNet(nn.Module):
         v = ((readings + 0.5) / self.levels).clamp(self.low, 1.0 - self.low)  # 1 - v >= half a code
         x = torch.log(v / (1.0 - v) + self.eps)
         xy, log_force, logits = self.mlp(x).split([2, 1, 2], dim=1)
-        # as FsrNet.forward: the exponent clamped so that a wild output cannot overflow float32
-        return torch.cat([xy, torch.exp(log_force.clamp(-30.0, 60.0)), torch.sigmoid(logits)], dim=1)
+        # as FsrNet.forward: the exponent clamped so that a wild output cannot overflow float32;
+        # onnxruntime's Sigmoid can round a large logit to 1 + 1 ulp: the probabilities are capped at 1
+        probabilities = torch.sigmoid(logits).clamp(max=1.0)
+        return torch.cat([xy, torch.exp(log_force.clamp(-30.0, 60.0)), probabilities], dim=1)
