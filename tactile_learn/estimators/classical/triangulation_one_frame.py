@@ -160,16 +160,29 @@ class OneFrameTriangulation:
         return self.estimate_loads(self.loads(codes))
 
     def estimate_loads(self, loads: list[float]) -> list[float]:
-        """:meth:`estimate` from the frame's six disc loads (N)."""
-        if not max(loads) >= self.min_load:  # no contact: all outputs 0
+        """:meth:`estimate` from the frame's six disc loads (N).
+
+        Only the triangles with the most valid sensors are solved: the winner's score counts its
+        valid sensors in millions and everything else below 102,000, so no other triangle can win.
+        """
+        min_load = self.min_load
+        if not max(loads) >= min_load:  # no contact: all outputs 0
             return [0.0, 0.0, 0.0, 0.0, 0.0]
-        solve = self._solve
-        solved = [solve(pick(loads), tri) for pick, tri in zip(self._pick, self.triangles, strict=True)]
-        top = max(solved[0][6], solved[1][6], solved[2][6], solved[3][6], 1e-300)
-        # winner: most valid sensors, then inside, then the largest summed load (rounded as
-        # np.round does: scaled, rounded half to even), then the deepest inside
-        scores = [
-            s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + min(max(s[5], -1.0), 1.0) for s in solved
-        ]
-        x, y, force, n_valid, inside, _, _ = solved[_argmax(scores)]
+        picked = [pick(loads) for pick in self._pick]
+        valid = [(f[0] >= min_load) + (f[1] >= min_load) + (f[2] >= min_load) for f in picked]
+        most = max(valid)
+        top = max(max(f[0] + f[1] + f[2] for f in picked), 1e-300)  # every triangle's summed load
+        best: tuple[float, float, float, int, bool, float, float] | None = None
+        best_score = 0.0
+        for f, n_valid, tri in zip(picked, valid, self.triangles, strict=True):
+            if n_valid != most:
+                continue
+            s = self._solve(f, tri)
+            # most valid sensors, then inside, then the largest summed load (rounded as np.round
+            # does: scaled, rounded half to even), then the deepest inside; the first of equals
+            score = s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + min(max(s[5], -1.0), 1.0)
+            if best is None or score > best_score:
+                best, best_score = s, score
+        assert best is not None  # the triangles with the most valid sensors: at least one
+        x, y, force, n_valid, inside, _, _ = best
         return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
