@@ -47,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from array import array
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
@@ -422,10 +423,10 @@ class TriangulationEstimator(Estimator):
         estimate = one.estimate_loads(loads)
         if not estimate[3]:  # no contact: every column 0
             return np.zeros((1, 6), dtype=np.float32)
-        out = np.array([[*estimate, 0.0]], dtype=np.float32)
-        # the check reads the float32 estimate, as in the batch path
-        out[0, 5] = self.check_.one_frame.p_one_press(codes, out[0, :5].tolist())
-        return out
+        # the check reads the float32 estimate, as in the batch path (array "f": float32 rounding,
+        # to nearest as numpy's cast; beyond float32's range inf, as numpy)
+        rounded = array("f", estimate).tolist()
+        return np.array([[*rounded, self.check_.one_frame.p_one_press(codes, rounded)]], dtype=np.float32)
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
         """A function of one validated frame ``(1, 6)`` giving what :meth:`predict_checked` gives,

@@ -58,3 +58,13 @@ def test_runner_stream_and_predict_give_the_batch_answers(cls: type[Triangulatio
     np.testing.assert_array_equal(by_predict[:, 3:], batch[:, 3:])
     np.testing.assert_array_equal(by_runner, by_predict)
     np.testing.assert_array_equal(streamed, by_predict)
+
+
+def test_the_checks_code_lookup_is_the_readout_inverse() -> None:
+    check = FittedTriangulationEstimator(SCENE).prepare().check_.one_frame
+    readout = check.readout
+    codes = [0.0, 1.0, 17.0, 512.0, 1022.0, 1023.0]
+    assert check.measured(codes) == readout.conductance_us(np.array(codes)).tolist()
+    fractional = [0.5, 1.0, 17.25, 512.0, 1022.0, 3.0]
+    assert check.measured(fractional) == [float(g) for g in readout.conductance_us(np.array(fractional))]
+    assert len(check.conductance_of_code) == 2**SCENE.sensor.readout.adc_bits
