@@ -169,18 +169,25 @@ class OneFrameTriangulation:
         if not max(loads) >= min_load:  # no contact: all outputs 0
             return [0.0, 0.0, 0.0, 0.0, 0.0]
         picked = [pick(loads) for pick in self._pick]
-        valid = [(f[0] >= min_load) + (f[1] >= min_load) + (f[2] >= min_load) for f in picked]
-        most = max(valid)
-        top = max(max(f[0] + f[1] + f[2] for f in picked), 1e-300)  # every triangle's summed load
+        valid, most, top = [], 0, 1e-300  # every triangle's valid sensors; the largest summed load
+        for f0, f1, f2 in picked:
+            n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
+            valid.append(n_valid)
+            most = n_valid if n_valid > most else most
+            total = f0 + f1 + f2  # as _solve sums it
+            top = total if total > top else top
         best: tuple[float, float, float, int, bool, float, float] | None = None
         best_score = 0.0
-        for f, n_valid, tri in zip(picked, valid, self.triangles, strict=True):
-            if n_valid != most:
+        solve, triangles = self._solve, self.triangles
+        for t in range(4):
+            if valid[t] != most:
                 continue
-            s = self._solve(f, tri)
+            s = solve(picked[t], triangles[t])
             # most valid sensors, then inside, then the largest summed load (rounded as np.round
             # does: scaled, rounded half to even), then the deepest inside; the first of equals
-            score = s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + min(max(s[5], -1.0), 1.0)
+            depth = s[5]
+            depth = -1.0 if depth < -1.0 else 1.0 if depth > 1.0 else depth
+            score = s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + depth
             if best is None or score > best_score:
                 best, best_score = s, score
         assert best is not None  # the triangles with the most valid sensors: at least one
