@@ -94,6 +94,8 @@ strips5() {
 fsr() {
   data fsr6 400000 1 fsr-train; data fsr6 5000 2 fsr-val; data fsr6 20000 3 fsr-test
   $TL train --task fsr --data data/fsr-train --val data/fsr-val --out runs/fsr --size large --epochs 30 --threads 1 --quiet
+  # export writes the lean graph (tactile_learn.nets.fsr_deploy: 26 nodes, not 36, the network's function);
+  # the shipped fsr.onnx was re-exported so from fsr.pt: python scripts/reexport_model.py models/fsr.onnx
   ship fsr fsr fsr-test
 }
 

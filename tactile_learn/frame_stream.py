@@ -124,20 +124,13 @@ class FrameStream:
     def predict(self, frames: Any) -> np.ndarray:
         """The estimator's prediction for ``frames`` (batch first); idle frames answered by the gate."""
         one = self._one_frame
-        if (
-            one is not None
-            and type(frames) is np.ndarray
-            and frames.shape == one.batch_shape
-            and frames.dtype == np.float32
-            and frames.flags.c_contiguous
-        ):
-            verdict = one.verdict(frames)
-            if verdict is not None:  # a valid frame (else the full check below gives its error)
-                self.frames += 1
-                if verdict:
-                    return (self._compute_one or self._compute)(frames)
-                self.skipped += 1
-                return self.task.empty_prediction(1, self.scene)
+        verdict = one.plain_verdict(frames) if one is not None else None
+        if verdict is not None:  # a valid frame (else the full check below gives its error)
+            self.frames += 1
+            if verdict:
+                return (self._compute_one or self._compute)(frames)
+            self.skipped += 1
+            return self.task.empty_prediction(1, self.scene)
         x = self.check(frames)
         n = len(x)
         self.frames += n

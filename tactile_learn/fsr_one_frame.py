@@ -87,6 +87,8 @@ class OneFrameCheck:
         levels = 2**readout.config.adc_bits
         # the readout inverse of every code, by the batch path's own function (bit for bit)
         self.code_conductance = readout.conductance_us(np.arange(levels, dtype=np.float64)).tolist()
+        # the same by code, for a look-up that is also the check (NaN or a fractional code is no key)
+        self.conductance_of_code = {float(code): g for code, g in enumerate(self.code_conductance)}
         self.readout = readout
 
     # ---- the forward model ----------------------------------------------------------------------
@@ -129,6 +131,11 @@ class OneFrameCheck:
 
     def measured(self, codes: list[float]) -> list[float]:
         """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
+        by_code = self.conductance_of_code
+        try:
+            return [by_code[c] for c in codes]
+        except KeyError:  # a code outside the table or between two codes
+            pass
         top = len(self.code_conductance)  # codes a checked frame can hold; others (unchecked) by the batch inverse
         if all(c.is_integer() and 0 <= c < top for c in codes):
             table = self.code_conductance

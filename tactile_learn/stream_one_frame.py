@@ -13,7 +13,7 @@ the threshold is left to :meth:`IdleGate.active` itself.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -49,6 +49,18 @@ class OneFrameGate:
         if bounds is None or int(np.prod(shape)) > MAX_VALUES:
             return None
         return cls(shape, bounds, gate)
+
+    def plain_verdict(self, frames: Any) -> bool | None:
+        """:meth:`verdict` of ``frames`` where they are a float32 C-contiguous batch of one frame
+        of the stream's shape; ``None`` for anything else (the full check's case)."""
+        if (
+            type(frames) is np.ndarray
+            and frames.shape == self.batch_shape
+            and frames.dtype == np.float32
+            and frames.flags.c_contiguous
+        ):
+            return self.verdict(frames)
+        return None
 
     def verdict(self, frames: np.ndarray) -> bool | None:
         """For ``frames``, a float32 C-contiguous batch of one frame: ``True`` (valid and active, or

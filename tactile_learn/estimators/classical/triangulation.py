@@ -47,6 +47,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from array import array
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -386,37 +388,62 @@ class TriangulationEstimator(Estimator):
                 self.inside_tol_mm,
                 self.simulator_.loads_from_readings(np.arange(levels, dtype=np.float64)),
                 self.simulator_.loads_from_readings,
+                # (low, high, strict) of a frame that passes the input check unchanged; None for a
+                # calibrated film (its readings are mapped): such frames take the batch path
+                self.input_check_.bounds(),
             )
-            # (low, high, strict) of a frame that passes the input check unchanged; None for a
-            # calibrated film (its readings are mapped): such frames take the batch path
             self.frame_bounds_ = self.input_check_.bounds()
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        one = self.prepared_state("one_frame_")
-        bounds = self.frame_bounds_
-        if type(X) is np.ndarray and X.shape == (1, fsr.N_SENSORS) and X.dtype == np.float32 and bounds is not None:
-            # one frame (a stream): the input check on its six floats (a NaN fails every
-            # comparison); anything unusual goes through the full check and its clear error
-            codes = X[0].tolist()
-            low, high, strict = bounds
-            if all((low < c if strict else low <= c) and c < high for c in codes):
-                return self._predict_frame(one, codes)
+        one: OneFrameTriangulation = self.prepared_state("one_frame_")
+        if type(X) is np.ndarray and X.shape == (1, fsr.N_SENSORS) and X.dtype == np.float32:
+            # one frame (a stream): six whole codes the input check passes are keys of the
+            # code -> load table (NaN, inf, codes out of range or between two codes are not)
+            codes = X.tolist()[0]
+            table = one.load_of_code
+            try:
+                loads = [table[c] for c in codes]
+            except KeyError:  # the general single-frame check (non-whole codes) or its clear error
+                bounds = self.frame_bounds_
+                if bounds is not None:
+                    low, high, strict = bounds
+                    if all((low < c if strict else low <= c) and c < high for c in codes):
+                        return self._predict_frame(one, codes)
+            else:
+                return self._predict_loads(one, codes, loads)
         return self.predict_checked(self.prepared_state("input_check_")(X))
 
     def _predict_frame(self, one: OneFrameTriangulation, codes: list[float]) -> np.ndarray:
         """(1, 6) for one checked frame of nominal-film codes, on Python floats."""
-        estimate = one.estimate(codes)
+        return self._predict_loads(one, codes, one.loads(codes))
+
+    def _predict_loads(self, one: OneFrameTriangulation, codes: list[float], loads: list[float]) -> np.ndarray:
+        """:meth:`_predict_frame` from the frame's disc loads (looked up already)."""
+        estimate = one.estimate_loads(loads)
         if not estimate[3]:  # no contact: every column 0
             return np.zeros((1, 6), dtype=np.float32)
-        out = np.array([[*estimate, 0.0]], dtype=np.float32)
-        # the check reads the float32 estimate, as in the batch path
-        out[0, 5] = self.check_.one_frame.p_one_press(codes, out[0, :5].tolist())
-        return out
+        # the check reads the float32 estimate, as in the batch path (array "f": float32 rounding,
+        # to nearest as numpy's cast; beyond float32's range inf, as numpy)
+        rounded = array("f", estimate).tolist()
+        return np.array([[*rounded, self.check_.one_frame.p_one_press(codes, rounded)]], dtype=np.float32)
+
+    def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
+        """A function of one validated frame ``(1, 6)`` giving what :meth:`predict_checked` gives,
+        with the single-frame state looked up once (:class:`~tactile_learn.frame_stream.FrameStream`
+        calls it for the single frames of an ungated stream, after its own check)."""
+        one: OneFrameTriangulation = self.prepared_state("one_frame_")
+        predict_loads, loads = self._predict_loads, one.loads
+
+        def run_frame(x: np.ndarray) -> np.ndarray:
+            codes = x.tolist()[0]
+            return predict_loads(one, codes, loads(codes))
+
+        return run_frame
 
     def predict_checked(self, readings: np.ndarray) -> np.ndarray:
         if len(readings) == 1:
-            return self._predict_frame(self.prepared_state("one_frame_"), readings[0].tolist())
+            return self._predict_frame(self.prepared_state("one_frame_"), readings.tolist()[0])
         return self.predict_batch(readings)
 
     def predict_batch(self, readings: np.ndarray) -> np.ndarray:

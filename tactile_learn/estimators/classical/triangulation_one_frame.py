@@ -5,8 +5,11 @@ with a microsecond or so of fixed cost, for arithmetic that takes ~2-3 us per fr
 :class:`OneFrameTriangulation` does the same steps for one frame on plain floats, with everything
 that depends only on the film worked out once: the disc load of every ADC code (the batch path's
 own readout inverse applied to the codes 0 .. full scale, so whole codes give its loads bit for
-bit), the triangles' matrices as tuples, the load model's constants. A frame whose six loads are
-all below the valid load is answered at once (no contact, all zeros). The results equal the batch
+bit), the triangles' matrices as tuples, the load model's constants. The loads are also kept by
+code for the whole codes the input check passes (:attr:`OneFrameTriangulation.load_of_code`): six
+dictionary look-ups check a frame and give its loads at once (a NaN, an infinite, saturated,
+negative or fractional code is no key: such a frame takes the general check). A frame whose six
+loads are all below the valid load is answered at once (no contact, all zeros). The results equal the batch
 path's to rounding (the same formulas in the same order; ``pow`` and friends may differ in the
 last bit from numpy's), which the tests check on many frames.
 """
@@ -15,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from operator import itemgetter
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,7 +29,7 @@ if TYPE_CHECKING:  # the batch module imports this one
 __all__ = ["OneFrameTriangulation"]
 
 
-def _argmax(values: list[float]) -> int:
+def _argmax(values: list[float] | tuple[float, ...]) -> int:
     """Index of the first largest value (``np.argmax`` on numbers without NaN)."""
     best = 0
     for i in range(1, len(values)):
@@ -46,6 +50,7 @@ class OneFrameTriangulation:
         inside_tol_mm: float,
         loads_of_codes: np.ndarray,
         loads_from_readings: Callable[[np.ndarray], np.ndarray],
+        valid_codes: tuple[float, float, bool] | None = None,
     ) -> None:
         self.model = model
         self.min_load = float(min_load_n)
@@ -56,6 +61,18 @@ class OneFrameTriangulation:
         self.on_axis = max(model.on_axis, 1e-300)
         self.loads_of_codes = loads_of_codes.tolist()
         self.loads_from_readings = loads_from_readings
+        #: the disc load of every whole code that the input check passes as it is (``valid_codes``:
+        #: its ``(low, high, strict)`` bounds; none for a film whose readings it maps): a frame
+        #: whose six codes are all keys needs no other check (NaN, inf, out of range, non-whole
+        #: codes are not keys and take the general path)
+        self.load_of_code: dict[float, float] = {}
+        if valid_codes is not None:
+            low, high, strict = valid_codes
+            self.load_of_code = {
+                float(code): load
+                for code, load in enumerate(self.loads_of_codes)
+                if (low < code if strict else low <= code) and code < high
+            }
         self.triangles = []
         for t in range(4):
             a_inv, u, x0, corners, bary = (
@@ -67,9 +84,15 @@ class OneFrameTriangulation:
             )
             gamma = float((geometry.u[t] ** 2).sum() + self.h2)  # > 0
             self.triangles.append((tuple(int(i) for i in geometry.tris[t]), a_inv, u, x0, corners, bary, gamma))
+        self._pick = [itemgetter(*tri[0]) for tri in self.triangles]  # a triangle's three loads
 
     def loads(self, codes: list[float]) -> list[float]:
         """Disc loads (N) of six ADC codes: whole codes from the table, others by the batch inverse."""
+        by_code = self.load_of_code
+        try:
+            return [by_code[c] for c in codes]
+        except KeyError:  # a code outside the checked range (a calibrated film: every code) or not whole
+            pass
         table = self.loads_of_codes
         top = len(self.loads_of_codes)  # codes a checked frame can hold; others (unchecked) by the batch inverse
         if all(c.is_integer() and 0 <= c < top for c in codes):
@@ -85,56 +108,88 @@ class OneFrameTriangulation:
         except OverflowError:
             return math.inf
 
-    def _solve(self, f: list[float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
+    def _solve(self, f: tuple[float, float, float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
         """One triangle's closed form with the fallbacks (``solve_triangles`` for one frame):
         x, y, force, valid sensors, inside, depth, summed load."""
         _, a_inv, u, x0, corners, bary, gamma = tri
-        n_valid = (f[0] >= self.min_load) + (f[1] >= self.min_load) + (f[2] >= self.min_load)
-        total = f[0] + f[1] + f[2]
+        f0, f1, f2 = f
+        min_load = self.min_load
+        n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
+        total = f0 + f1 + f2
         if n_valid <= 1:  # put the contact on the strongest sensor (the batch path's fallback)
             strongest = _argmax(f)
             force = max(f[strongest], 0.0) / self.on_axis
             x, y = corners[strongest]
             return x, y, (force if math.isfinite(force) else 0.0), n_valid, False, 0.0, total
-        g0, g1, g2 = (max(v if v >= self.min_load else self.low_load, 1e-9) ** self.neg_inv_m for v in f)
-        dg0, dg1 = g1 - g0, g2 - g0
-        x1x = a_inv[0][0] * dg0 + a_inv[0][1] * dg1
-        x1y = a_inv[1][0] * dg0 + a_inv[1][1] * dg1
+        low, power = self.low_load, self.neg_inv_m
+        g0 = max(f0 if f0 >= min_load else low, 1e-9) ** power
+        dg0 = max(f1 if f1 >= min_load else low, 1e-9) ** power - g0
+        dg1 = max(f2 if f2 >= min_load else low, 1e-9) ** power - g0
+        (a00, a01), (a10, a11) = a_inv
+        x1x = a00 * dg0 + a01 * dg1
+        x1y = a10 * dg0 + a11 * dg1
         alpha = x1x * x1x + x1y * x1y
         beta = 2.0 * (u[0] * x1x + u[1] * x1y) - g0
         disc = beta * beta - 4.0 * alpha * gamma
         if alpha <= 1e-12 * max(beta * beta, 1e-300):  # three equal loads: the linear root
-            roots: tuple[float, ...] = (-gamma / (beta if abs(beta) > 1e-300 else -1e-300),) * 2
+            k1 = k2 = -gamma / (beta if abs(beta) > 1e-300 else -1e-300)
         elif disc < 0:  # noise: the parabola's vertex (least residual)
-            roots = (-beta / (2 * alpha),) * 2
+            k1 = k2 = -beta / (2 * alpha)
         else:
             sq = math.sqrt(disc)
-            roots = ((-beta - sq) / (2 * alpha), (-beta + sq) / (2 * alpha))
-        best: tuple[float, float, float, float] | None = None
-        for k in roots:
-            x, y = x0[0] + k * x1x, x0[1] + k * x1y
-            ex, ey = x - corners[0][0], y - corners[0][1]
-            l1 = bary[0][0] * ex + bary[0][1] * ey
-            l2 = bary[1][0] * ex + bary[1][1] * ey
-            depth = min(1.0 - (l1 + l2), l1, l2) if k > 0 else -math.inf  # K = (C P)^(1/m) > 0
-            if best is None or depth > best[3]:
-                best = (k, x, y, depth)
-        assert best is not None
-        k, x, y, depth = best
+            k1, k2 = (-beta - sq) / (2 * alpha), (-beta + sq) / (2 * alpha)
+        (cx, cy), (b00, b01), (b10, b11) = corners[0], bary[0], bary[1]
+        # the first root, then the second where it lies deeper inside (the batch path's argmax:
+        # the first of equals)
+        x, y = x0[0] + k1 * x1x, x0[1] + k1 * x1y
+        ex, ey = x - cx, y - cy
+        l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
+        depth = min(1.0 - (l1 + l2), l1, l2) if k1 > 0 else -math.inf  # K = (C P)^(1/m) > 0
+        k = k1
+        x2, y2 = x0[0] + k2 * x1x, x0[1] + k2 * x1y
+        ex, ey = x2 - cx, y2 - cy
+        l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
+        depth2 = min(1.0 - (l1 + l2), l1, l2) if k2 > 0 else -math.inf
+        if depth2 > depth:
+            k, x, y, depth = k2, x2, y2, depth2
         force = self._force(k)
         return x, y, (force if math.isfinite(force) else 0.0), n_valid, depth >= self.inside_depth, depth, total
 
     def estimate(self, codes: list[float]) -> list[float]:
         """The five columns of one frame (``x, y, force, p_contact, p_inside``)."""
-        loads = self.loads(codes)
-        if not max(loads) >= self.min_load:  # no contact: all outputs 0
+        return self.estimate_loads(self.loads(codes))
+
+    def estimate_loads(self, loads: list[float]) -> list[float]:
+        """:meth:`estimate` from the frame's six disc loads (N).
+
+        Only the triangles with the most valid sensors are solved: the winner's score counts its
+        valid sensors in millions and everything else below 102,000, so no other triangle can win.
+        """
+        min_load = self.min_load
+        if not max(loads) >= min_load:  # no contact: all outputs 0
             return [0.0, 0.0, 0.0, 0.0, 0.0]
-        solved = [self._solve([loads[i] for i in tri[0]], tri) for tri in self.triangles]
-        top = max(max(s[6] for s in solved), 1e-300)
-        # winner: most valid sensors, then inside, then the largest summed load (rounded as
-        # np.round does: scaled, rounded half to even), then the deepest inside
-        scores = [
-            s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + min(max(s[5], -1.0), 1.0) for s in solved
-        ]
-        x, y, force, n_valid, inside, _, _ = solved[_argmax(scores)]
+        picked = [pick(loads) for pick in self._pick]
+        valid, most, top = [], 0, 1e-300  # every triangle's valid sensors; the largest summed load
+        for f0, f1, f2 in picked:
+            n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
+            valid.append(n_valid)
+            most = n_valid if n_valid > most else most
+            total = f0 + f1 + f2  # as _solve sums it
+            top = total if total > top else top
+        best: tuple[float, float, float, int, bool, float, float] | None = None
+        best_score = 0.0
+        solve, triangles = self._solve, self.triangles
+        for t in range(4):
+            if valid[t] != most:
+                continue
+            s = solve(picked[t], triangles[t])
+            # most valid sensors, then inside, then the largest summed load (rounded as np.round
+            # does: scaled, rounded half to even), then the deepest inside; the first of equals
+            depth = s[5]
+            depth = -1.0 if depth < -1.0 else 1.0 if depth > 1.0 else depth
+            score = s[3] * 1e6 + s[4] * 1e5 + round(s[6] / top * 1e3) / 1e3 * 1e3 + depth
+            if best is None or score > best_score:
+                best, best_score = s, score
+        assert best is not None  # the triangles with the most valid sensors: at least one
+        x, y, force, n_valid, inside, _, _ = best
         return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
