@@ -40,7 +40,7 @@ bench: $(STAMP)
 bench-speed: $(STAMP)
 	test -d data/strips16-test || $(BIN)/tactile-learn generate --scene strips16 --n 4000 --seed 3 --out data/strips16-test --quiet
 	$(BIN)/python scripts/thermal_sim_speed.py --scene thermal --scene thermal_wns --json results/thermal_sim_speed.json
-	$(BIN)/python scripts/latency_overhead.py --rounds 15 --per-round 20 --json results/latency_overhead.json
+	$(BIN)/python scripts/latency_overhead.py --rounds 15 --json results/latency_overhead.json
 	$(BIN)/python scripts/strips_pareto.py --models models/strips16.onnx models/strips16_small.onnx \
 		models/strips16_spheres.onnx --json results/strips_pareto.json
 	$(BIN)/python scripts/speed_report.py --out results/speed.md
