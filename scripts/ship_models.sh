@@ -50,8 +50,9 @@ strips16() {  # the general model (the default): the whole shape library, 1-4 co
   $PY scripts/average_weights.py runs/strips16_soup runs/strips16_distill --last-epoch --out runs/strips16_soup2
   # a sixth: the same data and teacher, the loss's per-frame (1 - r) term weighed up in three steps
   # (train --r-weight 3, 8, 20; r is what users read, the batch MSE weighs the heaviest frames), then
-  # 0.7 of its weights with 0.3 of the fifth cycle's: two spheres r 0.943 -> 0.949, ood mean 0.818 ->
-  # 0.820, margin +0.046 -> +0.048, smooth field -0.005 -> -0.004 (ood NRMSE 0.503 as before)
+  # 0.4 of its weights with 0.6 of the fifth cycle's (more of it puts the block at 30 degrees below the
+  # classical rules on an independent draw of the suite): two spheres r 0.943 -> 0.946, ood mean 0.818
+  # -> 0.820, margin +0.046 -> +0.047, smooth field -0.005 -> -0.0046 (ood NRMSE 0.503 as before)
   set -- data/mixed-train4 data/single-train data/smooth-train data/strips16-train data/strips16-train
   local init=runs/strips16_soup2 seed=0 rw lr
   for rw in 3 8 20; do
@@ -62,7 +63,7 @@ strips16() {  # the general model (the default): the whole shape library, 1-4 co
       --seed $seed --quiet
     init=runs/strips16_r$rw seed=$((seed + 1))
   done
-  $PY scripts/average_weights.py runs/strips16_soup2 runs/strips16_r20 --weight 0.7 --out runs/strips16_soup3
+  $PY scripts/average_weights.py runs/strips16_soup2 runs/strips16_r20 --weight 0.4 --out runs/strips16_soup3
   # flag thresholds calibrated on the general distribution, not on the last cycle's
   $TL export runs/strips16_soup3 --out models/strips16.onnx --test data/mixed-test --calibration data/mixed-val
   data strips16 4000 3 strips16-test; data strips16_twins 4000 3 strips16_twins-test
