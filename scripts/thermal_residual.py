@@ -2,8 +2,9 @@
 
     python scripts/thermal_residual.py --label R_1 --json results/thermal_robot_residual.json
 
-For the labelled session: ``calibrate`` once per set of per-touch nuisance terms (none; the
-object's flux; the object's flux and the heater's steps), and the residual in mK and in noise sigma
+For the labelled session: ``calibrate`` once per variant (per-touch nuisance terms: none; the
+object's flux; the object's flux and the heater's steps; the contact's precursor; and the joint
+refinement in noise units, ``weighted``), and the residual in mK and in noise sigma
 (both noise definitions: see ``tactile_learn.calibration.thermal_calibration._residual_summary``),
 with one contact for every touch and with each touch's own contact, overall, per channel and per
 condition of ``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time.
@@ -27,7 +28,15 @@ from tactile_learn.thermal_recordings import read_recordings, select_recordings
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from thermal_robot_protocol import robot_data  # a sibling script
 
-VARIANTS = {"none": (), "object_flux": ("object_flux",), "object_flux+heater_steps": ("object_flux", "heater_steps")}
+#: variant -> (per-touch nuisance terms, noise-weighted joint refinement)
+VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
+    "none": ((), False),
+    "object_flux": (("object_flux",), False),
+    "object_flux+heater_steps": (("object_flux", "heater_steps"), False),
+    "contact_precursor": (("contact_precursor",), False),
+    "weighted": ((), True),
+    "contact_precursor+weighted": (("contact_precursor",), True),
+}
 
 
 def by_condition(report: dict[str, Any], conditions: dict[str, str]) -> dict[str, Any]:
@@ -48,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=None)
     parser.add_argument("--label", default="R_1")
-    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma list of {', '.join(VARIANTS)}")
+    parser.add_argument("--variants", default="none,weighted", help=f"comma list of {', '.join(VARIANTS)}")
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     data = robot_data(args.data)
@@ -58,7 +67,10 @@ def main(argv: list[str] | None = None) -> int:
         conditions = {Path(t.file).name: str(t.info.get("condition", "?")) for t in read_recordings(labelled)}
         for variant in args.variants.split(","):
             started = time.perf_counter()
-            _, report = calibrate_recordings(labelled, CHANNEL_CHOICES["all"], nuisance=VARIANTS[variant])
+            nuisance, weighted = VARIANTS[variant]
+            _, report = calibrate_recordings(
+                labelled, CHANNEL_CHOICES["all"], nuisance=nuisance, noise_weighted=weighted
+            )
             seconds = time.perf_counter() - started
             out[variant] = {
                 "calibration_s": seconds,

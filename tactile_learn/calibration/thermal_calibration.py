@@ -31,7 +31,10 @@ press is never the same twice: a real user's touches have their own contact; wea
 to the shared one, with which they trade off), with a Jacobian that steps all touches' own
 parameters at once (each moves its own touch's rows only). Optional per-touch nuisance terms
 (``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
-object's flux (its temperature not uniform with depth) and the heater's power steps.
+object's flux (its temperature not uniform with depth), the heater's power steps, and a contact
+precursor (part of the contact arriving over the ``PRECURSOR_S`` before it, one amplitude per
+channel). Optional too (``noise_weighted``): the joint refinement in units of each sample's noise
+s.d. (the maximum-likelihood fit in the unit the residual is reported in) with weak linear priors.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
@@ -77,6 +80,13 @@ QUIET_BEFORE_S = 0.5
 #: prior s.d. of the object's temperature around the sensor's (K) and of a drift (K/s)
 OBJECT_PRIOR_K = 25.0
 DRIFT_PRIOR_K_S = 0.5
+#: a linear value one prior s.d. away costs as much as one sample this far off (K). The shared fit
+#: keeps 1 K (the priors steer its multi-start away from unphysical drifts); the noise-weighted joint
+#: refinement uses 10 mK, weak next to a record's ~150 samples (1 K against 10 mK residuals pulls
+#: the pre-contact drifts, and through them the shared ambient: at R_1's fit 9.9/9.8 mK with them,
+#: 8.2/9.2 mK without)
+PRIOR_ROW_K = 1.0
+PRIOR_ROW_TOUCH_K = 0.01
 #: a parameter whose log s.d. exceeds this (a factor 2) is reported as not identified
 UNIDENTIFIED_LOG_SD = math.log(2.0)
 #: what the model is expected to leave unexplained (K): the data residuals' unit in the fit
@@ -88,12 +98,23 @@ PRIOR_LINEAR_SD = 1.0
 #: local minima without making two sessions agree (the report lists what the data leave free)
 PRIOR_WEIGHT = 0.0
 #: per-touch nuisance terms the fit may add (see synth.sensors.thermal.dynamics.nuisance_terms)
-NUISANCE_TERMS = ("object_flux", "heater_steps")
+NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor")
+#: the contact precursor's length (s before the contact start): see NUISANCE_TERMS
+PRECURSOR_S = 0.6
 _NUISANCE_DOC = {
     "object_flux": "the object's flux F = k g (its temperature not uniform with depth: a cooled block warming "
     "from its surface)",
     "heater_steps": "the heater's power steps at the contact and at t_off (a controller's response read as steps)",
+    "contact_precursor": "a fraction of the contact arriving early (building up over the PRECURSOR_S before the "
+    "contact: an uneven pad, a thinning air gap), one amplitude per channel",
 }
+#: the joint refinement (shared + every touch's own contact) fits every sample in units of its
+#: noise s.d. (white noise and timing jitter, see noise_levels), with weak priors (PRIOR_ROW_TOUCH_K):
+#: the maximum-likelihood fit under the noise model the residual is reported in. Off, every sample
+#: of both channels weighs the same in K (the passive channel's white noise is ~7 times smaller).
+#: Off by default: on R_1 it lowers the residual in sigma (37 -> 30) by trading the heated channel's
+#: mK for the passive one's (see the README's calibration section)
+NOISE_WEIGHTED = False
 #: solver evaluations of the joint refinement (shared + every touch's own contact)
 TOUCH_RUN = 40
 #: solver evaluations of each multi-start's short run
@@ -250,6 +271,7 @@ class _Problem:
         classes: Sequence[Sequence[Material]],
         heater_off: bool,
         nuisance: Sequence[str] = (),
+        noise: dict[str, dict[str, float]] | None = None,
     ) -> None:
         self.touches = touches
         unknown = set(nuisance) - set(NUISANCE_TERMS)
@@ -262,9 +284,14 @@ class _Problem:
         self.nuisance_columns = [
             *(["object_flux_w_m2"] if "object_flux" in self.nuisance else []),
             *(["heater_step_at_contact_w_m2", "heater_step_at_off_w_m2"] if "heater_steps" in self.nuisance else []),
+            *(["heated_precursor_k"] if "contact_precursor" in self.nuisance else []),
         ]
         self.n = len(touches)
         self.passive = all(t.passive is not None for t in touches)
+        if "contact_precursor" in self.nuisance and self.passive:
+            self.nuisance_columns.append("passive_precursor_k")
+        #: the joint refinement fits in noise units (see NOISE_WEIGHTED)
+        self.noise_weighted = noise is not None
         self.heater_off = heater_off
         self.length = max(len(t.t) for t in touches)
         n, w = self.n, self.length
@@ -280,6 +307,8 @@ class _Problem:
             if tc.passive is not None:
                 self.x[1, i, :m] = tc.passive
         self.onset = np.array([tc.onset_s for tc in touches])
+        #: every sample's weight (C, n, W): 1 / its noise s.d. (normalised to mean square 1), or 1
+        self.weight = self._noise_weights(noise)
         self.label = np.array([tc.label for tc in touches])
         params: list[Parameter] = []
         channels = ("heated", "passive") if self.passive else ("heated",)
@@ -311,13 +340,35 @@ class _Problem:
         self.per_touch: list[Parameter] = []
         #: per-touch contact quality: every channel's H times this (1 in the shared fit)
         self.h_scale = np.ones(self.n)
+        #: the linear priors' row scale (see PRIOR_ROW_K)
+        self.prior_row_k = PRIOR_ROW_K
 
-    def with_touch_contact(self) -> _Problem:
+    def _noise_weights(self, noise: dict[str, dict[str, float]] | None) -> np.ndarray:
+        """1 / sigma(t) of every sample, ``sigma^2 = sigma_w^2 + (sigma_t dx/dt)^2`` with the data's
+        own slope (the noise model of :func:`noise_levels`, the unit the report's residual is given
+        in: a fit in that unit is the maximum-likelihood one), normalised to a mean square of 1 over
+        the samples (the residual rows keep their scale against the priors); 1 without ``noise``."""
+        n_ch = 2 if self.passive else 1
+        weight = np.ones((n_ch, self.n, self.length))
+        if noise is None:
+            return weight
+        for c, ch in enumerate(("heated", "passive")[:n_ch]):
+            nz = noise[ch]
+            slope = np.gradient(self.x[c], axis=1) * FIT_HZ
+            weight[c] = 1.0 / np.sqrt(nz["white_k"] ** 2 + (nz["timing_jitter_s"] * slope) ** 2)
+        weight *= self.mask[None]
+        return weight / np.sqrt(np.mean(weight[:, self.mask] ** 2))
+
+    def with_touch_contact(self, noise: dict[str, dict[str, float]] | None = None) -> _Problem:
         """The same problem with every touch's own contact (free, after the shared fit): its
         conductance factor, its lead and its build-up time relative to the shared ones, each with a
         weak prior (they trade off with the shared contact)."""
         twin = copy.copy(self)
         twin.per_touch = list(_TOUCH_CONTACT)
+        if noise is not None:  # data rows in noise units: the priors' rows weak beside them
+            twin.prior_row_k = PRIOR_ROW_TOUCH_K
+            twin.weight = twin._noise_weights(noise)
+            twin.noise_weighted = True
         return twin
 
     @property
@@ -383,18 +434,21 @@ class _Problem:
             model = self.channel_model(values, ch, e, spreading)
             t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
             terms = channel_terms(model, t_rel, ramp, t_off)
-            if self.nuisance:
+            if self.n_nuisance:
                 # the object's flux (one amplitude per touch for both channels: the same object),
                 # then the heater's steps (heated channel only) at the contact and at t_off
                 steps = "heater_steps" in self.nuisance and c == 0
                 times = (np.zeros(self.n), lead + values["heater.off_after_onset_s"]) if steps else ()
-                more = nuisance_terms(model, t_rel, ramp, times)
+                early = PRECURSOR_S if "contact_precursor" in self.nuisance else 0.0
+                more = nuisance_terms(model, t_rel, ramp, times, early)
                 j = 0
                 if "object_flux" in self.nuisance:
                     extra[c, :, :, 0] = more.flux
                     j = 1
                 if steps:
                     extra[c, :, :, j], extra[c, :, :, j + 1] = more.steps[0], more.steps[1]
+                if more.precursor is not None:  # each channel's own column (its own V0 and place on the pad)
+                    extra[c, :, :, self.nuisance_columns.index(f"{ch}_precursor_k")] = more.precursor
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
             # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
             cols[c, :, :, 0] = 1.0 + terms.obj
@@ -425,20 +479,21 @@ class _Problem:
         w = self.mask.astype(float)
         for c in range(n_ch):
             rows = slice(c * self.length, (c + 1) * self.length)
-            a[:, rows, 2 * c] = cols[c, :, :, 0] * w
-            a[:, rows, 2 * c + 1] = cols[c, :, :, 1] * w
-            a[:, rows, -1] = cols[c, :, :, 2] * w
-            a[:, rows, 2 * n_ch : 2 * n_ch + k] = extra[c] * w[:, :, None]
-            y[:, rows] = self.x[c] * w
-        q[:, : self.length] = power * w
+            wc = self.weight[c] * w
+            a[:, rows, 2 * c] = cols[c, :, :, 0] * wc
+            a[:, rows, 2 * c + 1] = cols[c, :, :, 1] * wc
+            a[:, rows, -1] = cols[c, :, :, 2] * wc
+            a[:, rows, 2 * n_ch : 2 * n_ch + k] = extra[c] * wc[:, :, None]
+            y[:, rows] = self.x[c] * wc
+        q[:, : self.length] = power * self.weight[0] * w
         # weak priors (rows after the data): T_obj near the first channel's onset value, drifts small
         base = np.array([tc.heated[max(int(np.searchsorted(tc.t, tc.onset_s)) - 1, 0)] for tc in self.touches])
         ref = base if not self.passive else np.array([tc.passive[0] for tc in self.touches if tc.passive is not None])
         prior = n_ch * self.length
-        a[:, prior, -1] = 1.0 / OBJECT_PRIOR_K
-        y[:, prior] = ref / OBJECT_PRIOR_K
+        a[:, prior, -1] = self.prior_row_k / OBJECT_PRIOR_K
+        y[:, prior] = ref * self.prior_row_k / OBJECT_PRIOR_K
         for c in range(n_ch):
-            a[:, prior + 1 + c, 2 * c + 1] = 1.0 / DRIFT_PRIOR_K_S
+            a[:, prior + 1 + c, 2 * c + 1] = self.prior_row_k / DRIFT_PRIOR_K_S
         # variable projection with the shared ambient T_amb: per touch x = A+ (y - T_amb q), then
         # T_amb by 1-D least squares of the projected residuals
         scale = np.sqrt((a**2).sum(axis=1)) + 1e-12
@@ -454,13 +509,13 @@ class _Problem:
         sol = np.einsum("nmk,nk->nm", pinv, y - power_q * q) / scale
         fit = np.einsum("nrm,nm->nr", a, sol) + power_q * q
         res = (fit - y)[:, : n_ch * self.length].reshape(self.n, n_ch, self.length).transpose(1, 0, 2)
-        res = res * w[None]
+        res = np.where(w[None] > 0, res / np.where(self.weight > 0, self.weight, 1.0), 0.0)
         return res, sol, power_q
 
     def residuals(self, free: np.ndarray) -> np.ndarray:
         """Data residuals in units of the model error, then one weak prior row per parameter."""
         res, _, _ = self.solve(free)
-        rows = [res[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)]
+        rows = [(res * self.weight)[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)]
         if self.per_touch:  # the touches' own contacts: weak priors around the shared one
             widths = np.repeat([p.hi for p in self.per_touch], self.n)
             rows.append(free[len(self.shared) :] / widths / TOUCH_PRIOR_SD)
@@ -513,12 +568,15 @@ def calibrate_channels(
     heater_off: bool = True,
     nuisance: Sequence[str] = (),
     touch_contact: bool = True,
+    noise_weighted: bool | None = None,
 ) -> CalibrationResult:
     """Multi-start fit of the model to ``touches`` (see the module docstring). ``nuisance``: the
     per-touch terms to fit, of :data:`NUISANCE_TERMS` (see
     :func:`synth.sensors.thermal.dynamics.nuisance_terms`); ``touch_contact``: after the shared
     fit, refine it jointly with every touch's own contact (conductance factor, lead, build-up)."""
     started = time.perf_counter()
+    if noise_weighted is None:
+        noise_weighted = NOISE_WEIGHTED
     problem = _Problem(touches, classes, heater_off, nuisance)
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
@@ -552,12 +610,12 @@ def calibrate_channels(
     values, lead, ramp = problem.unpack(final.x)
     if problem.heater_off and "heater_steps" not in problem.nuisance:
         values["heater.ambient_c"] = power_q
-    spread, own_res = _touch_spread(touches, classes, heater_off, problem, final.x)
+    spread, own_res = _touch_spread(touches, classes, heater_off, problem, final.x, noise if noise_weighted else None)
     shared_res = res
     if touch_contact:
         # the joint refinement: shared parameters and every touch's own contact together, from the
         # shared fit and the touches' own refits
-        problem = problem.with_touch_contact()
+        problem = problem.with_touch_contact(noise if noise_weighted else None)
         lo2, hi2 = problem.bounds()
         x0 = np.concatenate(
             [
@@ -616,6 +674,7 @@ def _touch_spread(
     heater_off: bool,
     problem: _Problem,
     shared: np.ndarray,
+    noise: dict[str, dict[str, float]] | None = None,
 ) -> tuple[list[dict[str, float]], np.ndarray]:
     """How much the touches differ: each touch refitted alone for its contact (a conductance
     factor, the lead and the build-up time), everything else at the shared fit. Their spread is
@@ -626,7 +685,7 @@ def _touch_spread(
     rows = []
     own = np.zeros((2 if problem.passive else 1, problem.n, problem.length))
     for i, tc in enumerate(touches):
-        single = _Problem([tc], classes, heater_off, problem.nuisance)
+        single = _Problem([tc], classes, heater_off, problem.nuisance, noise)
 
         def residuals(theta: np.ndarray, single: _Problem = single) -> np.ndarray:
             single.h_scale = np.array([math.exp(theta[0])])
@@ -654,7 +713,7 @@ def _touch_spread(
                 "touch_conductance_sd_log": float(np.sqrt(max(cov[0, 0], 0.0))),
                 "touch_lead_s": float(fit.x[1]),
                 "touch_ramp_s": ramp_p.from_free(float(fit.x[2])),
-                "touch_rms_k": float(np.sqrt(np.mean(fit.fun[: -len(single.shared)] ** 2))) * MODEL_ERROR_K,
+                "touch_rms_k": float(np.sqrt(np.mean(res_own[:, single.mask[0]] ** 2))),
             }
         )
     return rows, own
@@ -761,7 +820,14 @@ def _report(
         "per_touch": per_touch,
         "noise": noise,
         "residual": residual,
-        "solver": {"evaluations": evaluations, "seconds": seconds, "status": int(fit.status), "cost": float(fit.cost)},
+        "solver": {
+            "evaluations": evaluations,
+            "seconds": seconds,
+            "status": int(fit.status),
+            "cost": float(fit.cost),
+            # the refinement's samples weighed by 1 / their noise s.d. (else all alike, in K)
+            "noise_weighted": bool(problem.noise_weighted),
+        },
     }
 
 

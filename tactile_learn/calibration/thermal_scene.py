@@ -105,12 +105,14 @@ def calibrate_recordings(
     seed: int = 0,
     name: str = "calibrated",
     nuisance: tuple[str, ...] | None = None,
+    noise_weighted: bool | None = None,
 ) -> tuple[Scene, dict[str, Any]]:
     """Fit the user's sensor from the labelled touches in ``source``; returns the scene and the
     calibration report (see the module docstring). The passive channel is fitted whenever every
     touch has one (it pins the object's temperature), whatever ``channels`` the scene's classifier
     will read. ``nuisance``: the per-touch nuisance terms to fit (default: the calibration's;
-    see :data:`~tactile_learn.calibration.thermal_calibration.NUISANCE_TERMS`)."""
+    see :data:`~tactile_learn.calibration.thermal_calibration.NUISANCE_TERMS`); ``noise_weighted``: refine in
+    noise units (default: the calibration's, see its ``NOISE_WEIGHTED``)."""
     touches = [t for t in read_recordings(source, class_map=class_map) if t.material]
     if len(touches) < 2:
         raise DataError(f"{source}: {len(touches)} labelled touch(es): calibration needs two or more")
@@ -135,10 +137,15 @@ def calibrate_recordings(
         noise["passive"] = noise_levels(passive_noise)
     fit_touches = prepare_touches(series)
     materials = [[get_material(m) for m in mats] for _, mats in classes]
-    if nuisance is None:
-        result = calibrate_channels(fit_touches, materials, noise, starts=starts, seed=seed)
-    else:
-        result = calibrate_channels(fit_touches, materials, noise, starts=starts, seed=seed, nuisance=nuisance)
+    result = calibrate_channels(
+        fit_touches,
+        materials,
+        noise,
+        starts=starts,
+        seed=seed,
+        noise_weighted=noise_weighted,
+        nuisance=() if nuisance is None else nuisance,
+    )
     scene = scene_from_fit(result, classes, channels, noise, name=name)
     report = dict(result.report)
     report["classes"] = {n: list(m) for n, m in classes}

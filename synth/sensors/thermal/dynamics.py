@@ -442,10 +442,17 @@ class NuisanceTerms:
     flux: np.ndarray
     #: per W/m^2 of a heater power step at each of the given times, (K, B, T)
     steps: np.ndarray
+    #: per kelvin of ``V0``: a contact that builds up uniformly over the ``precursor_s`` seconds
+    #: before the onset minus the one at the onset (see :func:`nuisance_terms`), or None
+    precursor: np.ndarray | None = None
 
 
 def nuisance_terms(
-    model: ChannelModel, t: np.ndarray, ramp_s: np.ndarray | float = 0.0, t_steps: tuple[np.ndarray, ...] = ()
+    model: ChannelModel,
+    t: np.ndarray,
+    ramp_s: np.ndarray | float = 0.0,
+    t_steps: tuple[np.ndarray, ...] = (),
+    precursor_s: float = 0.0,
 ) -> NuisanceTerms:
     """Basis curves for what differs from touch to touch beyond the object's temperature, at times
     ``t`` (B, T) after the contact onset:
@@ -460,9 +467,18 @@ def nuisance_terms(
       changes its power more than once: a controller's response, read as steps), as
       :func:`channel_terms`' ``power``.
 
-    Both are 0 before their start, linear in their amplitude, and closed forms (checked against a
+    - ``precursor`` (``precursor_s > 0``): part of the contact arrives early. A pad that closes
+      unevenly (tilt, curvature, roughness), or an air gap that conducts as it thins, exchanges heat
+      with the object before the force rises; as a fraction ``eps`` of the contact building up
+      uniformly over the ``precursor_s`` seconds before the onset, the reading is ``V0 ((1 - eps) obj
+      + eps obj_early)``: this column is ``obj_early - obj`` (amplitude ``eps V0``), both the same
+      closed form as :func:`channel_terms`' ``obj`` (a ramp-averaged contact).
+
+    All are 0 before their start, linear in their amplitude, and closed forms (checked against a
     finite-volume solution in the tests).
     """
+    if not (np.isfinite(precursor_s) and precursor_s >= 0):
+        raise InputError("precursor_s: must be finite and >= 0")
     tt = np.asarray(t, dtype=np.float64)
     b = len(model)
     tt = np.broadcast_to(tt, (b, tt.shape[-1]))
@@ -471,19 +487,25 @@ def nuisance_terms(
         raise InputError("ramp_s: must be finite and >= 0")
     flux = np.empty(tt.shape)
     steps = np.empty((len(t_steps), *tt.shape))
+    precursor = np.empty(tt.shape) if precursor_s > 0 else None
     codes = model.structure()
     for code in np.unique(codes):
         rows = np.flatnonzero(codes == code)
         part = model._rows(rows)
-        _, num_power, den = part._polynomials()
+        num_obj, num_power, den = part._polynomials()
         num_flux = part.conductance[:, None]
         if (part.ki > 0).all():  # R = N q^2 / (q^2 D*) with an integrating controller
             num_flux = _poly_mul(num_flux, np.array([[1.0, 0.0, 0.0]]))
         width = den.shape[1] - 1
-        r, (w_flux, w_power) = _poles(np.stack([_pad_to(num_flux, width), _pad_to(num_power, width)]), den)
+        r, (w_flux, w_power, w_obj) = _poles(
+            np.stack([_pad_to(num_flux, width), _pad_to(num_power, width), _pad_to(num_obj, width)]), den
+        )
         t_r, ramp_r = tt[rows], ramp[rows]
         flux[rows] = _ramp_averaged(r, w_flux, t_r, ramp_r)
+        if precursor is not None:
+            early = _ramp_averaged(r, w_obj, t_r + precursor_s, np.full(len(rows), precursor_s))
+            precursor[rows] = early - _ramp_averaged(r, w_obj, t_r, ramp_r)
         for k, delay in enumerate(t_steps):
             d = np.broadcast_to(np.asarray(delay, dtype=np.float64), (b,))[rows]
             steps[k, rows] = _evaluate(r, w_power, t_r - d[:, None])
-    return NuisanceTerms(flux=flux, steps=steps)
+    return NuisanceTerms(flux=flux, steps=steps, precursor=precursor)

@@ -18,9 +18,12 @@ gives the same curve (to ~1e-12 K) from far less work:
   ``erfcx``. In the seed's sensor the complex pair is the pixel's own slow mode (``|p| ~
   sqrt(G / C) ~ 0.35 s^-1/2``), so the pair always takes this path;
 * **real roots** (the fast interface mode, ``p`` of -10 to -2000 s^-1/2) take the *real* ``erfcx``
-  (about 6x cheaper than the complex one), with the series near ``y = 0`` as in ``phi``;
+  (about 6x cheaper than the complex one) on every sample: near ``y = 0`` ``erfcx(y) - 1`` loses
+  relative accuracy only, its absolute error (~1e-16 ``|w / p|`` K) is what the curve sees;
 * anything else (a complex root with a large ``|p| sqrt t``, a metal's pair) takes the complex
-  ``erfcx``, once per conjugate pair.
+  ``erfcx``, once per conjugate pair, by :func:`~synth.sensors.thermal.faddeeva.erfcx_right`
+  (Weideman's rational series in numpy, ~30 ns a value against scipy's ~120-180 ns; scipy's
+  values to ~3e-14 relative, the mathematical function to ~1e-15).
 
 Everything stays float64: the series is truncated where its next term is below 1e-17 of ``g``,
 so the curve differs from the reference only by rounding (the test bounds it at 1e-9 K), and
@@ -28,21 +31,16 @@ readings after noise and the 0.01 K ADC are byte-identical in practice (checked 
 the shipped scenes). float32 was measured for the Horner step: it saves little (the step is a
 small share of the time) and moves the ADC's rounding, so it is not used.
 
-What is left (``thermal`` scene, 1024-touch chunks, CPU time per touch on a shared 2-core machine:
-~270-300 us in all, shares from a profile): the complex ``erfcx`` of metals' pairs (~460
-evaluations at 110-200 ns each, about a third; evaluated only where ``|y| >= 0.1``: the padding
-and the samples the series replaces are skipped), the readout's normal draws (the same stream,
-~10 ns each, about a sixth), the folded series (Horner, 19-37 terms on the samples of pixels with
-series roots, about an eighth), the real ``erfcx`` (~5 %), the roots (closed form, ~1 us per pixel
-where LAPACK's 3 x 3 ``eigvals`` took ~2.5 us; ~3 %), and gathers, scatters and the recovery the
-rest. The whole-record path spends ~3,000-4,000 us. Measured and not kept: finer or coarser reach
-bins and other block sizes (no difference beyond the machine's noise). Not done, with the reason:
-a cheaper complex ``erfcx`` in numpy. The metals' arguments are close to the real axis of the
-Faddeeva function (``w(i y)``), where exact-to-rounding forms (Taylor steps from tabulated nodes,
-Weideman's rational form, continued fractions) need, by our estimate (not built), 15-40 complex
-operations per value, each a numpy pass of 2-4 ns a value: no cheaper than scipy's compiled
-evaluation. scipy's ``erfcx`` with ``where=`` crashed on complex input (scipy 1.17), so the
-skipped samples are gathered out instead.
+What is left (``thermal`` scene, 1024-touch chunks, shares of a profile on the shared 2-core
+machine, ~200 us of CPU per touch in all): the readout's normal draws, a third (5,200 per touch at
+~14 ns: numpy's generator, kept so that the bytes are the reference's); the real ``erfcx`` (~1,250
+values per touch), the complex one (~400 values, Weideman) and the folded series (Horner, 19-37
+terms on the series pixels' samples), about a tenth each; the roots and weights (closed form), the
+gathers and scatters of the per-pixel grids, the recovery and Python's per-block overhead the rest.
+Blocks are large (512 pixels here, ~250 touches in :class:`~synth.sensors.thermal.ThermalModel`)
+because at ~150 numpy calls per block the calls' own cost is not small. Measured and not kept:
+the series' Horner in a transposed (samples, pixels) layout (slower: the per-row coefficient is
+a broadcast add either way), filling only the untouched pixels' steady state (no difference).
 """
 
 from __future__ import annotations
@@ -52,7 +50,8 @@ import math
 import numpy as np
 from scipy import special
 
-from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel, recovery_excess
+from synth.sensors.thermal.faddeeva import erfcx_minus_one_real
+from synth.sensors.thermal.physics import _G_SERIES, _SERIES_RADIUS, ContactModel
 
 __all__ = ["SERIES_RADIUS", "record_excess", "series_terms"]
 
@@ -92,34 +91,35 @@ def _root_part(p: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
 
     ``phi = (erfcx(y) - 1) / p`` with ``y = -p s``: the reference's ``s (1 - erfcx(y)) / y`` is the
     same number (to rounding), and dividing the row's weight by ``p`` once replaces a division by
-    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). ``erfcx`` is
-    evaluated only where ``|y| >= _SERIES_RADIUS``: below it (and at the padding's ``s = 0``) the
-    series of ``g`` takes over, so the complex ``erfcx`` (~200 ns each) runs only on the samples
-    that keep its value (scipy's ``erfcx`` ufunc with ``where=`` on complex input crashed here,
-    scipy 1.17: a gather and a scatter instead).
+    ``y`` and a product with ``s`` per sample (a complex division is ~4x a product). The
+    ``erfcx`` is evaluated on every sample (``|p| sqrt(tau)`` of these roots exceeds
+    :data:`SERIES_RADIUS`: a gather of the few small ones would cost more than it saves); near
+    ``y = 0`` only the relative accuracy of ``erfcx(y) - 1`` suffers, the absolute one (what the
+    curve needs) stays ~1e-16 ``|w / p|``. The complex roots' ``|y| < 0.1`` (at most the first
+    sample after the onset, and the padding) still take ``g``'s series, as in ``phi``.
     """
     size = np.abs(p)
-    y = -p[:, None] * s
-    # |y| < radius where s < radius / |p|; s = 0 (padding, or a release at the onset): phi = 0
-    small = s < (_SERIES_RADIUS / np.maximum(size, 1e-300))[:, None]
-    # a root at 0 is always "small" (its limit is infinite), so the weight over p is never used there
-    wp = w / np.where(size > 0, p, 1.0)
-    if small.all():
-        excess = np.zeros(y.shape)
-    elif not small.any() or not np.iscomplexobj(y):
-        # the real erfcx (~10 ns) costs less than a gather and a scatter: everywhere, the series
-        # overwrites below (at s = 0 it gives erfcx(0) - 1 = 0 exactly, as phi(p, 0) = 0)
-        excess = _real_part(wp, special.erfcx(y) - 1.0)
-    else:
-        at = ~small
-        ex = np.zeros_like(y)
-        ex[at] = special.erfcx(y[at]) - 1.0
-        excess = _real_part(wp, ex)
-    near = small & (s > 0)
-    if near.any():
-        rows, cols = np.nonzero(near)
-        sn = s[rows, cols]
-        excess[rows, cols] = _real_part(w[rows], _g_series(y[rows, cols])) * sn
+    wp = w / p  # p != 0: a root at 0 reaches 0, so it is always summed by the series
+    if not np.iscomplexobj(p):
+        # erfcx(0) = 1 exactly, and near y = 0 the difference erfcx(y) - 1 ~ -2 y / sqrt(pi) loses
+        # relative, not absolute accuracy: |w / p| 1e-16 K at most, so no series is needed here
+        excess = np.multiply(s, -p[:, None])
+        special.erfcx(excess, out=excess)
+        excess -= 1.0
+        excess *= wp[:, None]
+        return excess
+    # y = -p s by its real and imaginary halves (a complex p times a real s would first cast s)
+    y = np.empty(s.shape, dtype=np.complex128)
+    np.multiply(s, -p.real[:, None], out=y.real)
+    np.multiply(s, -p.imag[:, None], out=y.imag)
+    excess = erfcx_minus_one_real(y, wp)
+    # |y| < 0.1 (the first sample after an onset at most, and the padding's s = 0, where phi = 0):
+    # the series of g, as in phi (erfcx_right(0) is 1 only to rounding)
+    small = np.flatnonzero(s < (_SERIES_RADIUS / size)[:, None])
+    if len(small):
+        rows = small // s.shape[1]
+        flat_s = s.reshape(-1)[small]
+        excess.reshape(-1)[small] = _real_part(w[rows], _g_series(y.reshape(-1)[small])) * flat_s
     return excess
 
 
@@ -136,7 +136,7 @@ def _real_part(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 _BIN_TERMS = {high: series_terms(high) for high in _REACH_BINS}
 
 #: pixels per block of :func:`record_excess`: its temporaries (pixels x samples) stay in cache
-_BLOCK_ROWS = 256
+_BLOCK_ROWS = 512
 
 
 def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.ndarray) -> np.ndarray:
@@ -175,7 +175,7 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
                 acc *= sr
                 acc += row_coef[m]
             acc *= sr
-            total[rows] += acc
+            total[rows] = acc  # the bins' rows are disjoint and total is 0 there: no gather and add
     # a complex root's conjugate (the cubic's coefficients are real) carries the conjugate weight
     # (exactly: the same arithmetic on conjugate inputs): Re(w phi) of the pair is twice the one's
     conj = np.conj(r)
@@ -193,6 +193,27 @@ def _contact_block(r: np.ndarray, w: np.ndarray, tau: np.ndarray, tau_max: np.nd
             wj = w[pick, j] * np.where(paired[pick, j], 2.0, 1.0)
             total[pick] += _root_part(p.real if is_real else p, wj.real if is_real else wj, s[pick])
     return total
+
+
+def _recovery(
+    dt: np.ndarray, v_release: np.ndarray, source: np.ndarray, cap: np.ndarray, loss: np.ndarray
+) -> np.ndarray:
+    """:func:`~synth.sensors.thermal.physics.recovery_excess` (rows, samples) for per-row ``v_release``,
+    ``P``, ``C``, ``G``: ``v = v_r - (P / G - v_r) expm1(-G dt / C)`` (the same number: ``phi1(x) x =
+    -expm1(-x)``), four passes over the samples instead of a dozen; ``G = 0`` (the seed's model)
+    rows rise linearly, ``v_r + P dt / C``."""
+    held = loss > 0
+    rate = loss / cap
+    # per-row factor (P - G v_r) / G; 0 where G = 0 (those rows get their linear rise below)
+    factor = np.divide(source - loss * v_release, loss, out=np.zeros_like(loss), where=held)
+    rec = np.multiply(dt, -rate[:, None])
+    np.expm1(rec, out=rec)
+    rec *= -factor[:, None]
+    rec += v_release[:, None]
+    if not held.all():
+        still = np.flatnonzero(~held)
+        rec[still] += dt[still] * (source[still] / cap[still])[:, None]
+    return rec
 
 
 def record_excess(time_s: np.ndarray, model: ContactModel, onset: np.ndarray, release: np.ndarray) -> np.ndarray:
@@ -257,6 +278,6 @@ def _record_block(
         valid = cols_r[None, :] < after[:, None]
         dt = padded_t[np.minimum(idx_r, n_t)] - release[:, None]
         dt[~valid] = 0.0
-        rec = recovery_excess(dt, curve[:, -1:], source[:, None], cap[:, None], loss[:, None])
+        rec = _recovery(dt, curve[:, -1], source, cap, loss)
         flat[row_start + np.where(valid, idx_r, n_t)] = rec
     return buffer[:, :n_t]

@@ -27,8 +27,10 @@ from synth.sensors.thermal.touch import clean_channels, jitter
 
 __all__ = ["PassiveModel", "ThermalModel"]
 
-#: samples (touches x pixels x record) per block of :meth:`ThermalModel.forward`
-_READOUT_BLOCK = 320_000
+#: samples (touches x pixels x record) per block of :meth:`ThermalModel.forward`'s physics
+_READOUT_BLOCK = 1_280_000
+#: samples per pass of its noise and ADC (the block and its draws stay in the L2 cache)
+_NOISE_BLOCK = 65_536
 
 
 class ThermalModel(SensorModel[Touches]):
@@ -110,13 +112,17 @@ class ThermalModel(SensorModel[Touches]):
         n, p = stimulus["touched"].shape
         out = np.empty((n, p, len(self.time_s)))
         block = max(1, _READOUT_BLOCK // max(1, p * len(self.time_s)))
-        scratch = np.empty((min(n, block), p, len(self.time_s))) if rng is not None else None
+        scratch = np.empty(min(out.size, _NOISE_BLOCK)) if rng is not None else None
         for start in range(0, n, block):
             dest = out[start : start + block]
             self._contact_into(stimulus.take(slice(start, start + block)), dest)  # transduce: identity
-            if rng is not None and scratch is not None:
-                self.readout.add_noise(dest, scratch[: len(dest)], rng)
-                self.readout.adc(dest, out=dest)
+            if rng is None or scratch is None:
+                continue
+            flat = dest.reshape(-1)  # a view (out is C-contiguous): the draws fill it in C order
+            for at in range(0, len(flat), _NOISE_BLOCK):
+                part = flat[at : at + _NOISE_BLOCK]
+                self.readout.add_noise(part, scratch[: len(part)], rng)
+                self.readout.adc(part, out=part)
         return out
 
     def reading_spec(self) -> ArraySpec:

@@ -125,11 +125,12 @@ class CalibratedFitEstimator(Classifier):
                     owner.append(k)
         return np.stack(columns), np.array(owner)
 
-    def _projections(self) -> tuple[np.ndarray, np.ndarray, int]:
+    def _projections(self) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """Orthonormal bases of every (contact start, template) design matrix and of the
         no-contact lines, side by side ``(S W, (G + 1) L)``: the ``G`` = starts x templates groups
         of ``L`` columns sorted by class (zero-padded where a design has lower rank), the lines
-        last; where each class's groups begin (K,); and ``L``.
+        last; where each class's groups begin (K,); ``L``; and whether the bases leave out the
+        constant (see :func:`_column_bases`: a curve is then centred first).
 
         The design matrices do not depend on the curves, so they are factorised once here: a
         curve's residual sum of squares against a design ``A`` is ``|y|^2 - |Q^T y|^2`` (``Q`` an
@@ -171,14 +172,16 @@ class CalibratedFitEstimator(Classifier):
         group_class = np.array(groups)[by_class]
         if not np.array_equal(np.unique(group_class), np.arange(len(cfg.class_names))):
             raise ConfigError(f"calibrated fit: every class needs a template ({cfg.class_names})")
-        q = _column_bases(np.concatenate([np.stack(designs)[by_class], lines[None]]))
-        return q, np.flatnonzero(np.r_[True, group_class[1:] != group_class[:-1]]), n_lin
+        q, n_columns, centred = _column_bases(np.concatenate([np.stack(designs)[by_class], lines[None]]))
+        return q, np.flatnonzero(np.r_[True, group_class[1:] != group_class[:-1]]), n_columns, centred
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
     def predict_proba_checked(self, X: np.ndarray) -> np.ndarray:
         self.prepared_state("templates_")  # an unprepared estimator fails before any work
+        if len(X) == 1:
+            return self._predict_one(np.asarray(X, dtype=np.float64).reshape(-1))
         cfg: ThermalConfig = self.scene.sensor
         x = np.asarray(X, dtype=np.float64)
         if x.ndim == 2:
@@ -192,15 +195,18 @@ class CalibratedFitEstimator(Classifier):
     def _predict(self, x: np.ndarray) -> np.ndarray:
         cfg: ThermalConfig = self.scene.sensor
         b, n_ch, w = x.shape
-        q, class_start, n_columns = self.prepared_state("projections_")
+        q, class_start, n_columns, centred = self.prepared_state("projections_")
         sigma = max(cfg.readout.noise_k, MODEL_ERROR_K)
         y = x.reshape(b, n_ch * w)
+        if centred:  # the constant is in every design's column space: its part of y is fitted exactly
+            y = y - y.mean(axis=1, keepdims=True)
         proj = y @ q
         proj *= proj
         squares = proj.reshape(b, -1, n_columns)
         # residual sums of squares |y|^2 - |Q^T y|^2 of every (start, template) and the lines at
-        # once; the difference cancels to ~1e-16 |y|^2 (~1e-10 K^2 for a window at 35 degC, 1e-6
-        # of the scores' unit 2 sigma^2): clamped at 0, which its rounding can go below
+        # once; the difference cancels to ~1e-16 |y|^2 (~1e-12 K^2 for a centred window that
+        # drops by a few K, 1e-8 of the scores' unit 2 sigma^2): clamped at 0, which its rounding
+        # can go below
         rss = np.einsum("bi,bi->b", y, y)[:, None] - squares[..., 0]
         for column in range(1, n_columns):  # the sum over a short axis: ~5x faster than einsum's
             rss -= squares[..., column]
@@ -212,16 +218,58 @@ class CalibratedFitEstimator(Classifier):
         scores[:, -1] += NONE_BONUS
         return softmax(scores)
 
+    def _predict_one(self, y: np.ndarray) -> np.ndarray:
+        """:meth:`_predict` of one curve ``y`` (C W,), channels end to end: the same operations in
+        the same order (the residual sums of squares to the bit of a batch's row, but for the
+        matrix-vector product's summation order), without the batch's reshapes and chunking."""
+        q, class_start, n_columns, centred = self.prepared_state("projections_")
+        if centred:  # numpy's mean (sum, then over n) without its wrapper: the batch's to the bit
+            y = y - np.add.reduce(y) / len(y)
+        squares = y @ q
+        squares *= squares
+        by_design = squares.reshape(-1, n_columns)
+        rss = np.einsum("i,i->", y, y) - by_design[:, 0]
+        for column in range(1, n_columns):
+            rss -= by_design[:, column]
+        scores = np.empty((1, len(class_start) + 1))
+        np.minimum.reduceat(rss[:-1], class_start, out=scores[0, :-1])
+        scores[0, -1] = rss[-1]
+        # the clamp at 0 after each class's minimum (the same numbers: both are monotone)
+        np.maximum(scores, 0.0, out=scores)
+        sigma = max(self.scene.sensor.readout.noise_k, MODEL_ERROR_K)
+        scores *= -1.0 / (2 * sigma**2)
+        scores[0, -1] += NONE_BONUS
+        # softmax of one row (curve_match.softmax's operations, without its axis handling)
+        scores -= scores.max()
+        np.exp(scores, out=scores)
+        scores /= scores.sum()
+        return scores.astype(np.float32)
 
-def _column_bases(designs: np.ndarray) -> np.ndarray:
-    """Orthonormal bases of the column spaces of ``designs`` (G, N, L), side by side (N, G L).
+
+def _column_bases(designs: np.ndarray) -> tuple[np.ndarray, int, bool]:
+    """Orthonormal bases of the column spaces of ``designs`` (G, N, L), side by side (N, G L'),
+    ``L'``, and whether the constant vector was left out of them.
 
     The rank is decided as ``numpy.linalg.lstsq`` (``rcond=None``) decides it: singular values
     above ``eps max(N, L)`` times the largest; the columns beyond the rank are zero (a design whose
     contact lies outside the window has fewer independent columns). (Leaving them out, with a
-    sum over uneven groups, measured slower than multiplying by the zeros.)"""
+    sum over uneven groups, measured slower than multiplying by the zeros.)
+
+    Where the constant vector lies in every design's column space (the calibrated designs: the
+    baseline's column plus the object's, the lines' offset), the bases are those of the designs
+    with their constant part removed, ``L' = L - 1``: a centred curve's residual against a design
+    is then ``|y|^2 - |Q^T y|^2`` with a third less to read (batch 1 reads the whole matrix once
+    per call) and with ``|y|^2`` the curve's variation, not its level (less cancellation)."""
     g, n, n_col = designs.shape
     u, sv, _ = np.linalg.svd(designs, full_matrices=False)
-    keep = sv > np.finfo(np.float64).eps * max(n, n_col) * sv[:, :1]
-    u = u * keep[:, None, :]
-    return np.ascontiguousarray(u.transpose(1, 0, 2).reshape(n, g * n_col))
+    floor = np.finfo(np.float64).eps * max(n, n_col) * sv[:, :1]
+    basis = u * (sv > floor)[:, None, :]
+    ones = np.full(n, 1.0 / math.sqrt(n))
+    outside = ones - np.einsum("gnl,gl->gn", basis, np.einsum("gnl,n->gl", basis, ones))
+    centred = n_col > 1 and bool((np.linalg.norm(outside, axis=1) <= 1e-8).all())  # rounding: ~1e-15
+    if centred:
+        without = designs - ones[None, :, None] * np.einsum("n,gnl->gl", ones, designs)[:, None, :]
+        u, sv, _ = np.linalg.svd(without, full_matrices=False)  # rank one less than the design's
+        n_col -= 1
+        basis = u[:, :, :n_col] * (sv[:, :n_col] > floor)[:, None, :]
+    return np.ascontiguousarray(basis.transpose(1, 0, 2).reshape(n, g * n_col)), n_col, centred

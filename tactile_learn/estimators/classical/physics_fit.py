@@ -54,6 +54,8 @@ from tactile_learn.estimators.classical.curve_match import (
     nominal_sensor,
     softmax,
 )
+from tactile_learn.estimators.classical.physics_fit_one_frame import fit_one_curve, one_curve_start
+from tactile_learn.thermal_frame import detect_onset_one
 from tactile_learn.validation.thermal import thermal_check
 
 __all__ = ["CurveFit", "PhysicsFitEstimator", "contact_drop", "fit_curves", "material_gaussians", "material_scores"]
@@ -110,7 +112,8 @@ def _drop_fast(
 @dataclass
 class CurveFit:
     """Fitted parameters (B, 6) ``b, V0, log e, log H, log k_s, t0``, their covariance (B, 6, 6),
-    the reduced chi-square (B,), and the onset detection."""
+    the reduced chi-square (B,), and the onset detection (a curve without an onset is not fitted:
+    its initial values, a zero covariance, a NaN chi-square)."""
 
     theta: np.ndarray
     cov: np.ndarray
@@ -278,10 +281,15 @@ def material_gaussians(materials: Sequence[Material]) -> np.ndarray:
 
 
 def material_scores(
-    theta: np.ndarray, cov: np.ndarray, config: ThermalConfig, use_diffusivity: bool = True
+    theta: np.ndarray,
+    cov: np.ndarray,
+    config: ThermalConfig,
+    use_diffusivity: bool = True,
+    gaussians: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Log-scores (B, K) of every material for fitted parameters (see the module docstring)."""
-    gauss = material_gaussians(config.material_list)
+    """Log-scores (B, K) of every material for fitted parameters (see the module docstring);
+    ``gaussians``: :func:`material_gaussians` of the scene's materials, when already computed."""
+    gauss = material_gaussians(config.material_list) if gaussians is None else gaussians
     le = theta[:, 2]
     var_e = cov[:, 2, 2]
     d_e = le[:, None] - gauss[None, :, 0]
@@ -334,8 +342,15 @@ class PhysicsFitEstimator(Classifier):
     def prepare(self) -> PhysicsFitEstimator:
         """Build the curve matcher that gives every fit its onset and initial values (once)."""
         if "matcher_" not in self.__dict__:
-            self.input_check_ = thermal_check(self.scene.sensor)
+            cfg: ThermalConfig = self.scene.sensor
+            self.input_check_ = thermal_check(cfg)
             self.matcher_ = CurveMatchEstimator(self.scene).prepare()
+            # the materials' tables, read by every single-frame call
+            self.materials_ = (
+                np.array([m.effusivity for m in cfg.material_list]),
+                np.array([m.k_w_mk for m in cfg.material_list]),
+                material_gaussians(cfg.material_list),
+            )
         return self
 
     def _sensor(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -379,9 +394,16 @@ class PhysicsFitEstimator(Classifier):
         v0 = (dev * f0).sum(axis=1) / np.maximum((f0 * f0).sum(axis=1), 1e-12)  # |f|^2 > 0 after onset
         init = np.stack([onset.baseline, v0, np.log(e0), np.log(h0), np.log(ks0), t_on], axis=1)
         init[:, 1] = np.clip(init[:, 1], v0_range[:, 0], v0_range[:, 1])
-        theta, cov, chi2 = fit_curves(
-            x, cfg, c, g, init, onset.sigma, v0_range, self.iterations, fit_spreading=cfg.contact.spreading
-        )
+        # only curves with an onset are fitted (the others are none whatever their fit): the rest
+        # keep their initial values, a zero covariance and a NaN chi-square
+        theta, cov, chi2 = init, np.zeros((len(x), 6, 6)), np.full(len(x), np.nan)
+        fitted = np.flatnonzero(onset.detected)
+        if len(fitted):
+            theta = init.copy()
+            theta[fitted], cov[fitted], chi2[fitted] = fit_curves(
+                x[fitted], cfg, c[fitted], g[fitted], init[fitted], onset.sigma[fitted], v0_range[fitted],
+                self.iterations, fit_spreading=cfg.contact.spreading,
+            )  # fmt: skip
         return CurveFit(theta, cov, chi2, onset.detected)
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
@@ -390,6 +412,8 @@ class PhysicsFitEstimator(Classifier):
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
         self.prepared_state("matcher_")  # an unprepared estimator fails before any work
         x = heated(x).astype(np.float64)
+        if len(x) == 1:
+            return self._predict_one(x[0])
         k = len(self.scene.sensor.material_list)
         c, g, v0_range = self._sensor(len(x))
         out = np.zeros((len(x), k + 1), dtype=np.float32)
@@ -402,3 +426,25 @@ class PhysicsFitEstimator(Classifier):
             scores[~fit.detected, -1] = 0.0
             out[sl] = softmax(scores)
         return merge_classes(out, self.scene.sensor)
+
+    def _predict_one(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`predict_proba_checked` of one curve ``x`` (W,): the batch path's steps in their
+        one-curve forms (:mod:`~tactile_learn.estimators.classical.physics_fit_one_frame`)."""
+        cfg: ThermalConfig = self.scene.sensor
+        matcher: CurveMatchEstimator = self.prepared_state("matcher_")
+        effusivity, conductivity, gaussians = self.prepared_state("materials_")
+        scores = np.full((1, len(effusivity) + 1), -np.inf)
+        onset = detect_onset_one(x, cfg.readout.sampling_hz, cfg.readout.adc_step_k)
+        if not onset.detected:  # none (the batch path does not fit it either)
+            scores[0, -1] = 0.0
+        else:
+            c, g, v0_range = self._sensor(1)
+            lo_v, hi_v = float(v0_range[0, 0]), float(v0_range[0, 1])
+            cap, loss = float(c[0]), float(g[0])
+            init = one_curve_start(x, onset, cfg, matcher.library_, effusivity, conductivity, cap, loss, (lo_v, hi_v))
+            theta, cov, _ = fit_one_curve(
+                x, cfg, cap, loss, init, onset.sigma, (lo_v, hi_v), self.iterations, cfg.contact.spreading,
+                _BOUNDS, _STEPS,
+            )  # fmt: skip
+            scores[:, :-1] = material_scores(theta[None], cov[None], cfg, self.use_diffusivity, gaussians)
+        return merge_classes(softmax(scores).astype(np.float32), cfg)

@@ -84,3 +84,28 @@ def test_series_terms_reach_the_truncation() -> None:
 
     m = series_terms(1.0)
     assert 1.0 / gamma((m + 1) / 2 + 1) < 1e-17
+
+
+def test_recovery_of_mixed_blocks_with_and_without_loss() -> None:
+    """One block holding pixels with G = 0 (a linear rise after release) and G > 0 (exponential
+    relaxation), released before the end of the record: the recovery is the reference's."""
+    rng = np.random.default_rng(9)
+    n = 300
+    model = _model(n, rng)
+    loss = np.where(rng.random(n) < 0.5, 0.0, model.loss)
+    model = ContactModel.create(
+        model.heat_capacity, loss, model.conductance, model.effusivity, model.spreading, model.v0, model.heating
+    )
+    time_s = np.arange(325) / 50.0
+    onset = rng.uniform(0.5, 2.0, n)
+    release = onset + rng.uniform(0.0, 2.5, n)
+    fast = record_excess(time_s, model, onset, release)
+    ref = touch_excess(time_s, model, onset, release)
+    after = time_s[None, :] > release[:, None]
+    assert after.any(axis=1).all() and (loss == 0).any() and (loss > 0).any()
+    scale = np.abs(model.v0).max() + np.abs(model.heating).max() * time_s[-1] / model.heat_capacity.min()
+    assert np.abs(fast - ref).max() < 1e-9 * scale
+    # a pixel without loss keeps rising (or falling) linearly after release: the G = 0 branch ran
+    still = np.flatnonzero((loss == 0) & (np.abs(model.heating) > 1.0))[0]
+    tail = fast[still, after[still]]
+    assert np.allclose(np.diff(tail, 2), 0.0, atol=1e-9)
