@@ -23,6 +23,7 @@
 from __future__ import annotations
 
 import hashlib
+import inspect
 import os
 import time
 from dataclasses import asdict, dataclass, field
@@ -80,6 +81,8 @@ class TrainConfig:
     teacher: str | None = None
     teacher_data: tuple[str, ...] = ()
     teacher_weight: float = 1.0
+    # the weight of the loss's per-frame (1 - r) term, for tasks whose loss has one (strips)
+    r_weight: float = 1.0
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -101,6 +104,14 @@ class TrainConfig:
         if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
             raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
         self._validate_teacher()
+        if not (0.0 <= self.r_weight <= 100.0):
+            raise ConfigError(f"--r-weight: {self.r_weight} is out of range [0, 100]")
+        if self.r_weight != 1.0 and "r_weight" not in inspect.signature(task.loss).parameters:
+            raise ConfigError(f"--r-weight: the {self.task} task's loss has no per-frame r term")
+
+    def loss_options(self) -> dict[str, float]:
+        """Keyword arguments of the task's loss (none at the defaults: every task's loss takes those)."""
+        return {} if self.r_weight == 1.0 else {"r_weight": self.r_weight}
 
     def _validate_teacher(self) -> None:
         if not self.teacher:
@@ -403,7 +414,7 @@ def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
             else:
                 x, targets = _batch(run, arrays, rng)
                 output = task.train_forward(net, torch.from_numpy(x))
-            loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()})
+            loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()}, **config.loss_options())
             if not torch.isfinite(loss):
                 raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
             run.optimizer.zero_grad(set_to_none=True)

@@ -84,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--teacher-weight", type=float, default=1.0, help="target = w * teacher + (1 - w) * truth (default 1)"
     )
+    parser.add_argument(
+        "--r-weight",
+        type=float,
+        default=1.0,
+        help="strips: weight of the loss's per-frame (1 - Pearson r) term beside the MSE (default 1)",
+    )
     parser.add_argument("--quiet", action="store_true")
 
 
@@ -114,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         teacher=args.teacher,
         teacher_data=tuple(args.teacher_data),
         teacher_weight=args.teacher_weight,
+        r_weight=args.r_weight,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports

@@ -127,8 +127,11 @@ def build_strip_net(size: str, scene: Scene, stats: dict[str, Any]) -> nn.Module
     return StripNet(scene, stats, size)
 
 
-def strip_loss(pred: torch.Tensor | tuple[torch.Tensor, ...], target: torch.Tensor) -> torch.Tensor:
-    """MSE in units of the pressure scale, plus (1 - Pearson r) per frame: the metric users read.
+def strip_loss(
+    pred: torch.Tensor | tuple[torch.Tensor, ...], target: torch.Tensor, r_weight: float = 1.0
+) -> torch.Tensor:
+    """MSE in units of the pressure scale, plus ``r_weight`` (1 - Pearson r) per frame: the metric
+    users read (the batch's MSE is dominated by its heaviest frames, r weighs every frame alike).
 
     Frames with an all-zero truth contribute only their MSE (their r is undefined). A tuple of
     maps (a network's final map and its intermediate ones) adds each intermediate map's loss at
@@ -136,9 +139,9 @@ def strip_loss(pred: torch.Tensor | tuple[torch.Tensor, ...], target: torch.Tens
     starts from it.
     """
     if isinstance(pred, tuple):
-        total = strip_loss(pred[0], target)
+        total = strip_loss(pred[0], target, r_weight)
         for intermediate in pred[1:]:
-            total = total + INTERMEDIATE_WEIGHT * strip_loss(intermediate, target)
+            total = total + INTERMEDIATE_WEIGHT * strip_loss(intermediate, target, r_weight)
         return total
     scale = target.pow(2).mean().sqrt().clamp_min(1e-6)
     mse = ((pred - target) / scale).pow(2).mean()
@@ -148,4 +151,4 @@ def strip_loss(pred: torch.Tensor | tuple[torch.Tensor, ...], target: torch.Tens
     valid = t.pow(2).sum(dim=1) > 1e-12
     r = (p * t).sum(dim=1) / denom
     corr = (1 - r[valid]).mean() if bool(valid.any()) else pred.sum() * 0
-    return mse + corr
+    return mse + r_weight * corr

@@ -22,6 +22,7 @@ difference above ``tolerance`` of the output range.
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Any
 
@@ -78,26 +79,24 @@ class DeployedStripNet(nn.Module):
     """``GeneralStripNet`` (no correction step) rearranged for export; outputs the map, its readings
     residual and the readings' balance (``StripResidual``)."""
 
-    segments: torch.Tensor
+    total_weights: torch.Tensor
+    diff_weights: torch.Tensor
+    half_weights: torch.Tensor
+    sums: torch.Tensor
+    stress: torch.Tensor
+    noise_weights: torch.Tensor
+    numerator: torch.Tensor
 
     def __init__(self, net: GeneralStripNet, scene: Scene) -> None:
         super().__init__()
         if net.correct:
             raise ModelError("the deployed form covers networks without the correction step")
         n, m = net.n_rows, net.n_cols
-        self.n_rows, self.n_cols = n, m
-        loads = net.loads
-        # loads = clip(c0 - c1 / clip(v / gain + (v_unloaded - offset / gain), lo, hi), 0, 1) * segments
-        self.scale_v = 1.0 / loads.gain
-        self.shift_v = loads.v_unloaded - loads.offset / loads.gain
-        self.lo, self.hi = 1e-9 * loads.supply, loads.supply * (1 - 1e-9)
-        self.c0 = 1.0 + loads.reference / loads.r0
-        self.c1 = loads.reference * loads.supply / loads.r0
-        self.register_buffer("segments", loads.segments.clone())
-        self.total_floor = net.total_floor
-        self.log_ref = math.log(net.total_ref)
         if n != m:
             raise ModelError("the deployed form covers square arrays (rows and columns share its convolutions)")
+        self.n_rows, self.n_cols = n, m
+        self._readout(net)
+        self.total_floor = net.total_floor
         cross: Any = net.crossings
         enc = int(cross.row_encoder[0].out_channels)
         hidden = int(cross.row_proj.out_channels)
@@ -107,6 +106,30 @@ class DeployedStripNet(nn.Module):
                 width = (1, 1) if k == 0 else (enc, enc)
                 layers += [_block_diagonal_conv1d(ra, ca, width), nn.ReLU()]
         self.encoder = nn.Sequential(*layers)
+        self._projections(net, enc, hidden)
+        self.hidden = hidden
+        self.blocks = nn.Sequential(*[_DeployedAxial(b) for b in list(net.blocks)])
+        self._head(net, hidden)
+        self._checks(scene)
+
+    def _readout(self, net: GeneralStripNet) -> None:
+        """loads = clip(c0 - c1 / clip(v / gain + (v_unloaded - offset / gain), lo, hi), 0, 1) * segments,
+        with the clip moved onto v, the affine map into one shift and the (uniform, square array)
+        segment count into the constants: clip(C0 - C1 / (clip(v, lo', hi') + shift), 0, S)."""
+        loads = net.loads
+        scale, shift = 1.0 / loads.gain, loads.v_unloaded - loads.offset / loads.gain
+        lo, hi = 1e-9 * loads.supply, loads.supply * (1 - 1e-9)
+        self.v_lo, self.v_hi = (lo - shift) / scale, (hi - shift) / scale  # scale > 0: bounds keep their order
+        self.v_shift = shift / scale
+        segments = float(loads.segments[0])  # n == m: every strip has the same number of segments
+        self.c0 = segments * (1.0 + loads.reference / loads.r0)
+        self.segments = segments
+        # a 0-d tensor, not a Python number: the exporter writes one Div instead of Reciprocal and Mul
+        self.register_buffer("numerator", torch.tensor(segments * loads.reference * loads.supply / loads.r0 / scale))
+
+    def _projections(self, net: GeneralStripNet, enc: int, hidden: int) -> None:
+        """The strip projections, the physics channels and the context MLP, folded."""
+        cross: Any = net.crossings
         # physics channels 2 and 3 (the broadcast row and column loads) join the strip projections'
         # raw-profile weight; channels 0 and 1 (outer product, minimum) stay per crossing
         phys = cross.physics_proj.weight[:, :, 0, 0]  # (H, 4)
@@ -115,87 +138,132 @@ class DeployedStripNet(nn.Module):
         with torch.no_grad():
             row_w[:, enc, 0] += phys[:, 2]
             col_w[:, enc, 0] += phys[:, 3]
-        # one projection of [enc_row, enc_col, raw_row, raw_col] (B, 2 enc + 2, N) -> (B, 2H, N)
-        self.project = nn.Conv1d(2 * enc + 2, 2 * hidden, 1)
+        # two projections of [enc_row, enc_col, raw_row, raw_col] (B, 2 enc + 2, N) -> (B, H, N) each
+        self.project_rows = nn.Conv1d(2 * enc + 2, hidden, 1)
+        self.project_cols = nn.Conv1d(2 * enc + 2, hidden, 1, bias=False)
         with torch.no_grad():
-            self.project.weight.zero_()
-            self.project.weight[:hidden, :enc] = row_w[:, :enc]
-            self.project.weight[hidden:, enc : 2 * enc] = col_w[:, :enc]
-            self.project.weight[:hidden, 2 * enc] = row_w[:, enc]
-            self.project.weight[hidden:, 2 * enc + 1] = col_w[:, enc]
-            assert self.project.bias is not None
-            self.project.bias.zero_()
-            self.project.bias[:hidden] = cross.row_proj.bias
+            self.project_rows.weight.zero_()
+            self.project_cols.weight.zero_()
+            self.project_rows.weight[:, :enc] = row_w[:, :enc]
+            self.project_cols.weight[:, enc : 2 * enc] = col_w[:, :enc]
+            self.project_rows.weight[:, 2 * enc] = row_w[:, enc]
+            self.project_cols.weight[:, 2 * enc + 1] = col_w[:, enc]
+            assert self.project_rows.bias is not None
+            self.project_rows.bias.copy_(cross.row_proj.bias)
         self.physics = nn.Conv2d(2, hidden, 1, bias=False)
         with torch.no_grad():
             self.physics.weight.copy_(cross.physics_proj.weight[:, :2])
-        # the context MLP's last layer writes the row half of the projection (zeros for columns)
+        # the context reads log(T / T_ref): the reference moves into the first layer's bias
         ctx: Any = net.context
-        last = ctx[4]
-        widened = nn.Linear(last.in_features, 2 * hidden)
+        first = nn.Linear(ctx[0].in_features, ctx[0].out_features)
         with torch.no_grad():
-            widened.weight.zero_()
-            widened.bias.zero_()
-            widened.weight[:hidden] = last.weight
-            widened.bias[:hidden] = last.bias
-        self.context = nn.Sequential(ctx[0], ctx[1], ctx[2], ctx[3], widened)
-        self.hidden = hidden
-        self.blocks = nn.Sequential(*[_DeployedAxial(b) for b in list(net.blocks)])
-        # head: exp(clip(h0)) * (p0 / n) * product + softplus(4 h1) / 4 * (pressure scale / total_ref)
-        head = nn.Conv2d(hidden, 2, 1)
+            first.weight.copy_(ctx[0].weight)
+            first.bias.copy_(ctx[0].bias - ctx[0].weight[:, -1] * math.log(net.total_ref))
+        self.context = nn.Sequential(first, ctx[1], ctx[2], ctx[3], ctx[4])
+
+    def _head(self, net: GeneralStripNet, hidden: int) -> None:
+        """exp(clip(h0)) * (p0 / n) * product + softplus(4 h1) / 4 * (pressure scale / total_ref): the
+        slope and softplus' beta folded into two 1 x 1 heads (two convolutions: no channel gathers)."""
         slope = net.p0 / net.exponent
         trained: Any = net.head
+        self.head_scale = nn.Conv2d(hidden, 1, 1)
+        self.head_mass = nn.Conv2d(hidden, 1, 1)
         with torch.no_grad():
-            head.weight.copy_(trained.weight)
-            assert head.bias is not None
-            head.bias.copy_(trained.bias)
-            head.bias[0] += math.log(slope)
-            head.weight[1] *= 4.0
-            head.bias[1] *= 4.0
-        self.head = head
+            for i, conv in enumerate((self.head_scale, self.head_mass)):
+                assert conv.bias is not None
+                conv.weight.copy_(trained.weight[i : i + 1])
+                conv.bias.copy_(trained.bias[i : i + 1])
+            assert self.head_scale.bias is not None and self.head_mass.bias is not None
+            self.head_scale.bias += math.log(slope)
+            self.head_mass.weight *= 4.0
+            self.head_mass.bias *= 4.0
         self.clip = (-20.0 + math.log(slope), 4.0 + math.log(slope))
         self.slope = slope
         self.law_base = net.law_base
         self.p0, self.exponent = net.p0, net.exponent
         self.unit = net.pressure_scale / net.total_ref / 4.0
-        self.forward_model = StripForward(scene)
-        self.residual = StripResidual(scene)
+
+    def _checks(self, scene: Scene) -> None:
+        """The forward model and the checks of ``StripResidual`` as matrix products over the loads."""
+        n = self.n_rows
+        forward = StripForward(scene)
+        residual = StripResidual(scene)
+        self.register_buffer("stress", forward.stress.clone())
+        self.p0_forward, self.exponent_forward = forward.p0, forward.exponent
+        strips = forward.sums.shape[1]
+        # residual = sqrt(mean(((model - measured) / noise)^2)) = || (model - measured) w ||_2 with
+        # w = 1 / (noise sqrt(N+M)); the difference first, as StripResidual takes it (model and
+        # measured loads are large in noise units and close: their difference loses the least)
+        self.register_buffer("sums", forward.sums.clone())
+        self.register_buffer("noise_weights", residual.inverse_noise / math.sqrt(strips))
+        # balance = |rows - cols| / ((rows + cols) / 2 + floor); the frame total = the same half sum
+        is_row = (torch.arange(strips) < n).to(torch.float32)
+        self.register_buffer("diff_weights", 2.0 * is_row - 1.0)
+        self.register_buffer("half_weights", torch.full((strips,), 0.5))
+        self.register_buffer("total_weights", torch.full((strips, 1), 0.5))
+        self.balance_floor = residual.floor
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        n, h = self.n_rows, self.hidden
-        divider = (readings * self.scale_v + self.shift_v).clamp(self.lo, self.hi)
-        loads = (self.c0 - self.c1 / divider).clamp(0.0, 1.0) * self.segments
-        total = loads.sum(dim=1, keepdim=True) * 0.5 + self.total_floor  # (B, 1)
+        n = self.n_rows
+        loads = (self.c0 - self.numerator / (readings.clamp(self.v_lo, self.v_hi) + self.v_shift)).clamp(
+            0.0, self.segments
+        )
+        total = loads @ self.total_weights + self.total_floor  # (B, 1)
         shape = loads / total
-        context = self.context(torch.cat([shape, torch.log(total) - self.log_ref], dim=1))  # (B, 2H)
-        rows, cols = shape[:, :n], shape[:, n:]
+        context = self.context(torch.cat([shape, torch.log(total)], dim=1))  # (B, H)
         profiles = shape.reshape(-1, 2, n)  # rows and columns as the two channels of one sequence
         features = torch.cat([self.encoder(profiles), profiles], dim=1)
-        terms = self.project(features) + context.unsqueeze(2)  # (B, 2H, N)
-        product = rows.unsqueeze(2) * cols.unsqueeze(1)  # (B, N, M)
-        physics = torch.stack([product, torch.minimum(rows.unsqueeze(2), cols.unsqueeze(1))], dim=1)
-        x = torch.relu(terms[:, :h].unsqueeze(3) + terms[:, h:].unsqueeze(2) + self.physics(physics))
-        head = self.head(self.blocks(x))
+        row_terms = self.project_rows(features) + context.unsqueeze(2)  # (B, H, N)
+        col_terms = self.project_cols(features)
+        rows = shape[:, :n].reshape(-1, 1, n, 1)
+        cols = shape[:, n:].reshape(-1, 1, 1, n)
+        product = rows * cols  # (B, 1, N, M)
+        physics = torch.cat([product, torch.minimum(rows, cols)], dim=1)
+        x = torch.relu(row_terms.unsqueeze(3) + col_terms.unsqueeze(2) + self.physics(physics))
+        x = self.blocks(x)
         base = product  # the classical estimate / (slope * total): the linear base
         if self.law_base:  # the law's inverse of the share (exponent 1: three nodes, no power)
-            share = (product * total.unsqueeze(2)).clamp(0.0, MAX_SHARE)
+            share = (product * total.reshape(-1, 1, 1, 1)).clamp(0.0, MAX_SHARE)
             if self.exponent == 1.0:
                 base = product / (1.0 - share)
             else:
-                base = law_inverse(share, self.p0, self.exponent) / (self.slope * total.unsqueeze(2))
-        learned = torch.exp(head[:, 0].clamp(*self.clip)) * base + nn.functional.softplus(head[:, 1]) * self.unit
-        pressure = learned * total.unsqueeze(2)
-        return (pressure, *self.residual(self.forward_model(pressure), loads))
+                base = law_inverse(share, self.p0, self.exponent) / (self.slope * total.reshape(-1, 1, 1, 1))
+        mass = nn.functional.softplus(self.head_mass(x))  # exported with its threshold: no overflow
+        learned = torch.exp(self.head_scale(x).clamp(*self.clip)) * base + mass * self.unit
+        flat = (learned.reshape(-1, n * n)) * total  # (B, N*M)
+        return (flat.reshape(-1, n, n), *self._consistency(flat, loads, total))
+
+    def _consistency(
+        self, flat: torch.Tensor, loads: torch.Tensor, total: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``StripForward`` and ``StripResidual`` on the flat map (non-negative by construction, so
+        no clamp before the stress; the truncated kernel's -1e-6-sized stress far from any load
+        moves a gain by 1e-8 of p0, so none after it either)."""
+        stress = flat @ self.stress
+        if self.exponent_forward == 1.0:
+            gain = stress / (stress + self.p0_forward)
+        else:
+            gain = 1.0 - torch.pow(1.0 + stress / self.p0_forward, -self.exponent_forward)
+        residual = torch.linalg.vector_norm((gain @ self.sums - loads) * self.noise_weights, dim=1)
+        balance = (loads @ self.diff_weights).abs() / (loads @ self.half_weights + self.balance_floor)
+        return residual, balance
 
 
 def deploy(net: GeneralStripNet, scene: Scene, probe: torch.Tensor, tolerance: float = 1e-4) -> DeployedStripNet:
-    """The deployed form of ``net``, checked against it on ``probe`` readings (B, N+M)."""
+    """The deployed form of ``net``, checked against it on ``probe`` readings (B, N+M).
+
+    Both run in float64 for the check: the rearrangement is exact algebra, and in float32 the
+    readout's rounding (a few 1e-6 of a strip's load, whichever order of operations) moves the map
+    by ~1e-4 of its range through a trained network, which would hide a real folding mistake of
+    that size or fail a correct one."""
     from tactile_learn.nets.strips_general import GeneralStripNetWithResidual
 
     deployed = DeployedStripNet(net, scene).eval()
-    reference = GeneralStripNetWithResidual(net, scene).eval()
+    check = copy.deepcopy(deployed).double()
+    reference = GeneralStripNetWithResidual(copy.deepcopy(net), scene).double().eval()
     with torch.inference_mode():
-        for got, want in zip(deployed(probe), reference(probe), strict=True):
+        wide = probe.double()
+        for got, want in zip(check(wide), reference(wide), strict=True):
             # maps in kPa: relative to their range; the dimensionless checks (O(1)): at least absolute
             span = max(float(want.max() - want.min()), 1.0)
             if float((got - want).abs().max()) > tolerance * span:

@@ -53,6 +53,8 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
     "corrected": (24, 16, 192, 2, True),
     # the fast one (issue 15's small model): half the crossing channels, one mixing block
     "tiny": (16, 8, 96, 1, False),
+    # the small network with a third mixing block, grown from a trained small one (scripts/strips_grow.py)
+    "deep": (24, 16, 192, 3, False),
 }
 # the same networks on the classical estimate itself (the law's inverse, ``base`` below)
 SIZES |= {f"{name}_law": spec for name, spec in SIZES.items() if name != "corrected"}

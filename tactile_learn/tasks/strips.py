@@ -326,10 +326,11 @@ class StripsTask(Task):
         outputs = getattr(net, "train_outputs", None)
         return outputs(inputs) if outputs is not None else net(inputs)
 
-    def loss(self, output: Any, targets: dict[str, torch.Tensor]) -> torch.Tensor:
+    def loss(self, output: Any, targets: dict[str, torch.Tensor], r_weight: float = 1.0) -> torch.Tensor:
+        """``strip_loss``; ``r_weight`` (``train --r-weight``) weighs its per-frame (1 - r) term."""
         from tactile_learn.nets.strips import strip_loss
 
-        return strip_loss(output, targets["pressure"])
+        return strip_loss(output, targets["pressure"], r_weight)
 
 
 def _mirrored(

@@ -1,0 +1,46 @@
+"""scripts/strips_grow.py: a deeper general strip network started from a trained one."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torch", reason="torch (training extra) is not installed: nothing here runs without it")
+
+import torch
+
+from synth.dataset import simulate_shard
+from synth.errors import ConfigError
+from synth.scene import load_scene
+from tactile_learn.checkpoints import build_net, load_weights
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
+import strips_grow
+
+
+def test_the_grown_network_computes_what_the_trained_one_does_and_can_learn(tmp_path: Path) -> None:
+    out = tmp_path / "deep.pt"
+    assert strips_grow.main(["models/strips16.pt", "--size", "deep", "--out", str(out)]) == 0
+    scene = load_scene("strips16")
+    grown = build_net(load_weights(out), scene)  # strict load: three mixing blocks
+    source = build_net(load_weights("models/strips16.pt"), scene)
+    assert len(grown.blocks) == len(source.blocks) + 1
+    readings = torch.from_numpy(simulate_shard(scene, 4, 0, 32)["readings"])
+    with torch.inference_mode():
+        np.testing.assert_allclose(grown(readings).numpy(), source(readings).numpy(), rtol=1e-5, atol=1e-4)
+    # the added block is not a dead end: the loss has a gradient on its weights
+    grown.train()
+    grown(readings).pow(2).mean().backward()
+    added = grown.blocks[-1]
+    assert float(added.own.weight.grad.abs().sum()) > 0.0
+    assert float(added.along_rows.weight.grad.abs().sum()) > 0.0
+
+
+def test_only_the_number_of_blocks_may_grow(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="only the number of mixing blocks"):
+        strips_grow.main(["models/strips16.pt", "--size", "large", "--out", str(tmp_path / "x.pt")])
+    with pytest.raises(ConfigError, match="fewer mixing blocks"):
+        strips_grow.grow(load_weights("models/strips16.pt")["state_dict"], "small", "deep")
