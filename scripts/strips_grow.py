@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import torch
 
-from synth.errors import ConfigError, ModelError
-from tactile_learn.checkpoints import load_weights, save_torch
+from synth.errors import ConfigError
 from tactile_learn.nets.strips_general import SIZES
+from tactile_learn.train_resize import load_general_source, write_resized
 
 __all__ = ["grow", "main"]
 
@@ -43,17 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", required=True, help="the deeper size (strips_general.SIZES)")
     parser.add_argument("--out", required=True, help="weights file to write (for train --init)")
     args = parser.parse_args(argv)
-    saved = load_weights(args.source)
-    if saved["task"] != "strips" or saved["stats"].get("arch") != 2:
-        raise ModelError(f"{args.source}: not a general strip network (architecture 2)")
-    if args.size not in SIZES:
-        raise ConfigError(f"--size {args.size!r} is not one of {', '.join(SIZES)}")
+    saved = load_general_source(args.source, args.size)
     state = grow(saved["state_dict"], args.size, str(saved["size"]))
-    result = {**saved, "size": args.size, "state_dict": state, "grown_from": str(args.source)}
-    result.pop("source", None)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    save_torch(Path(args.out), result)
-    print(f"{args.out}: {args.size} network from {args.source} ({saved['size']})")
+    write_resized(saved, args.size, state, args.out, "grown_from", args.source)
     return 0
 
 

@@ -370,6 +370,17 @@ def _lag_offsets(t: np.ndarray, lag1: np.ndarray, lag2: np.ndarray) -> np.ndarra
     return np.where(t > 0, after, -(t1 + t2)[:, None])
 
 
+def _rows_of_times(t: np.ndarray, ramp_s: float | np.ndarray, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sample times ``t`` ((T,) or (rows, T)) and contact build-up times ``ramp_s`` (scalar or
+    (rows,)) as one row per touch, float64; a negative or non-finite build-up is refused."""
+    tt = np.asarray(t, dtype=np.float64)
+    tt = np.broadcast_to(tt, (rows, tt.shape[-1]))
+    ramp = np.broadcast_to(np.asarray(ramp_s, dtype=np.float64), (rows,))
+    if (ramp < 0).any() or not np.isfinite(ramp).all():
+        raise InputError("ramp_s: must be finite and >= 0")
+    return tt, ramp
+
+
 def channel_terms(
     model: ChannelModel, t: np.ndarray, ramp_s: np.ndarray | float = 0.0, t_power: np.ndarray | None = None
 ) -> ChannelTerms:
@@ -388,12 +399,8 @@ def channel_terms(
 
     Before the onset ``obj`` and ``power`` are 0, so a whole record is one formula.
     """
-    tt = np.asarray(t, dtype=np.float64)
     b = len(model)
-    tt = np.broadcast_to(tt, (b, tt.shape[-1]))
-    ramp = np.broadcast_to(np.asarray(ramp_s, dtype=np.float64), (b,))
-    if (ramp < 0).any() or not np.isfinite(ramp).all():
-        raise InputError("ramp_s: must be finite and >= 0")
+    tt, ramp = _rows_of_times(t, ramp_s, b)
     obj = np.empty(tt.shape)
     drift = np.empty(tt.shape)
     power = None if t_power is None else np.empty(tt.shape)
@@ -479,12 +486,8 @@ def nuisance_terms(
     """
     if not (np.isfinite(precursor_s) and precursor_s >= 0):
         raise InputError("precursor_s: must be finite and >= 0")
-    tt = np.asarray(t, dtype=np.float64)
     b = len(model)
-    tt = np.broadcast_to(tt, (b, tt.shape[-1]))
-    ramp = np.broadcast_to(np.asarray(ramp_s, dtype=np.float64), (b,))
-    if (ramp < 0).any() or not np.isfinite(ramp).all():
-        raise InputError("ramp_s: must be finite and >= 0")
+    tt, ramp = _rows_of_times(t, ramp_s, b)
     flux = np.empty(tt.shape)
     steps = np.empty((len(t_steps), *tt.shape))
     precursor = np.empty(tt.shape) if precursor_s > 0 else None
