@@ -28,9 +28,8 @@ from typing import Any
 import numpy as np
 
 from synth.dataset import simulate_shard
-from synth.io import atomic_write_json
 from synth.scene import load_scene
-from tactile_learn.bench import machine_info
+from tactile_learn.bench import machine_info, record_run
 from tactile_learn.fsr_check import one_press_check
 from tactile_learn.methods import shipped_models
 from tactile_learn.runtime import OnnxEstimator
@@ -113,11 +112,7 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
         result["methods"][name] = row
-    result["load_average_1min"] = [load_before, os.getloadavg()[0]]
-    result["command"] = "python scripts/fsr_frame_speed.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    print(f"load average (1 min) before / after: {result['load_average_1min']}")
-    if args.json:
-        atomic_write_json(args.json, result)
+    record_run(result, "fsr_frame_speed.py", argv, load_before, args.json)
     return 0
 
 

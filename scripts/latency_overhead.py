@@ -52,9 +52,8 @@ from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from synth.io import atomic_write_json  # noqa: E402
 from synth.scene import Scene, load_scene  # noqa: E402
-from tactile_learn.bench import _bench_data, _same_sensor, machine_info  # noqa: E402
+from tactile_learn.bench import _bench_data, _same_sensor, machine_info, record_run  # noqa: E402
 from tactile_learn.methods import shipped_models  # noqa: E402
 from tactile_learn.runtime import OnnxEstimator, read_card  # noqa: E402
 from tactile_learn.tasks import get_task  # noqa: E402
@@ -299,11 +298,7 @@ def main(argv: list[str] | None = None) -> int:
     if "skins" in args.sections:
         result["skins"] = bench_skins(args.skin_frames, args.rounds, per_round=20)
         print(f"skins {json.dumps(result['skins'])}", flush=True)
-    result["load_average_1min"] = [load_before, os.getloadavg()[0]]
-    result["command"] = "python scripts/latency_overhead.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    print(f"load average (1 min) before / after: {result['load_average_1min']}")
-    if args.json:
-        atomic_write_json(args.json, result)
+    record_run(result, "latency_overhead.py", argv, load_before, args.json)
     return 0
 
 

@@ -34,6 +34,7 @@ import numpy as np
 from synth import __version__
 from synth.dataset import generate
 from synth.errors import ConfigError
+from synth.io import atomic_write_json
 from synth.scene import Scene, available_scenes, load_scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.methods import shipped_cards
@@ -41,7 +42,7 @@ from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.timing import interleaved_times, time_predict, timed
 
-__all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info"]
+__all__ = ["ERROR_METRIC", "bench_simulator", "bench_suite", "bench_task", "machine_info", "record_run"]
 
 #: per task: (metric plotted as error, lower is better?) - the Pareto plot's y axis
 ERROR_METRIC: dict[str, tuple[str, bool]] = {
@@ -53,6 +54,19 @@ ERROR_METRIC: dict[str, tuple[str, bool]] = {
 #: the seed paper's own algorithm per task: the reference of the ratios
 REFERENCE_METHOD = {"strips": "intersection", "thermal": "curve_match", "fsr": "triangulation", "capacitive": "bicubic"}
 BENCH_SEED = 909_090  # held-out frames: no training or validation set uses this seed
+
+
+def record_run(
+    result: dict[str, Any], script: str, argv: list[str] | None, load_before: float, out: str | None
+) -> None:
+    """Close a benchmark script's ``result``: the 1-minute load before and after, the command that
+    reproduces it (``python scripts/SCRIPT ARGS``), printed load, and the JSON at ``out`` if given
+    (written atomically)."""
+    result["load_average_1min"] = [load_before, os.getloadavg()[0]]
+    result["command"] = f"python scripts/{script} " + " ".join(argv if argv is not None else sys.argv[1:])
+    print(f"load average (1 min) before / after: {result['load_average_1min']}")
+    if out:
+        atomic_write_json(out, result)
 
 
 def machine_info() -> dict[str, Any]:

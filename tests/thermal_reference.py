@@ -15,6 +15,9 @@ from __future__ import annotations
 import numpy as np
 from scipy import integrate, linalg, sparse
 
+from synth.materials import get_material
+from synth.sensors.thermal.dynamics import ChannelModel
+
 
 def reference_channel(
     t: np.ndarray,
@@ -211,3 +214,15 @@ def numerical_excess(
     growth = np.expm1(lt) / np.where(lam == 0, 1.0, lam)[None, :]
     z = z0[None, :] * np.exp(lt) + bz[None, :] * growth
     return (z * first[None, :]).sum(axis=1) * m[0]
+
+
+def channel_of_material(material: str, params: dict[str, float]) -> tuple[ChannelModel, float, float]:
+    """A one-touch channel model on ``material`` (its effusivity) with ``params``, and the
+    material's conductivity (W/(m K)) and diffusivity (m^2/s) for the reference solver."""
+    m = get_material(material)
+    return ChannelModel.create(effusivity=m.effusivity, **params), m.k_w_mk, m.diffusivity_mm2_s * 1e-6
+
+
+def relative_max_error(closed: np.ndarray, ref: np.ndarray) -> float:
+    """Largest deviation of a closed form from the reference, relative to the reference's peak."""
+    return float(np.max(np.abs(closed - ref)) / np.max(np.abs(ref)))

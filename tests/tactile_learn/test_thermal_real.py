@@ -16,6 +16,7 @@ from synth.config import replace
 from synth.errors import ConfigError, DataError
 from synth.scene import load_scene, parse_scene
 from synth.sensors.thermal import make_simulator
+from tactile_learn.calibration.thermal_calibration import noise_levels
 from tactile_learn.cli import main
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import calibrate_recordings, write_scene
@@ -88,6 +89,25 @@ def robot_scene(**changes: object) -> object:
     for key, value in changes.items():
         config = replace(config, key, value)
     return dataclasses.replace(scene, sensor=config)
+
+
+def simulated_series(
+    scene: object, n: int, seed: int
+) -> tuple[list[tuple[str, int, np.ndarray, np.ndarray, np.ndarray, float]], dict[str, dict[str, float]], dict]:
+    """``n`` simulated touches of ``scene`` as the calibration's series (name, class, t, heated,
+    passive, onset), the noise levels of both channels, and the simulator's arrays."""
+    arrays = make_simulator(scene).simulate(n, np.random.default_rng(seed))  # type: ignore[arg-type]
+    fs = scene.sensor.readout.sampling_hz  # type: ignore[attr-defined]
+    t = np.arange(arrays["readings"].shape[-1]) / fs
+    series, heated, passive = [], [], []
+    for i in range(n):
+        onset = float(arrays["latent_onset_s"][i, 0])
+        h = arrays["readings"][i, 0].astype(np.float64)
+        p = arrays["passive"][i, 0].astype(np.float64)
+        series.append((f"t{i}", int(arrays["latent_class"][i, 0]), t, h, p, onset))
+        heated.append((t, h, onset))
+        passive.append((t, p, onset))
+    return series, {"heated": noise_levels(heated), "passive": noise_levels(passive)}, arrays
 
 
 def robot_touches(n: int, seed: int, scene: object = None) -> list[Touch]:

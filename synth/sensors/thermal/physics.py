@@ -55,6 +55,7 @@ onset plus a small jitter) and release.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -248,6 +249,21 @@ class ContactModel:
                 if (arr < 0).any():
                     raise InputError(f"{name}: must be >= 0")
         return cls(c, g, h, e, ks, v0_, s)
+
+    @classmethod
+    def of_touched(cls, params: Mapping[str, np.ndarray]) -> ContactModel:
+        """The model of the touched pixels of a draw's ``params`` (per pixel, (B, P) arrays; the
+        ``touched`` mask selects the rows), heater at its set temperature (no heating step)."""
+        sel = params["touched"]
+        return cls.create(
+            params["heat_capacity"][sel],
+            params["loss"][sel],
+            params["conductance"][sel],
+            params["effusivity"][sel],
+            params["spreading"][sel],
+            params["v0"][sel],
+            0.0,
+        )
 
     @cached_property
     def poles(self) -> tuple[np.ndarray, np.ndarray]:

@@ -75,15 +75,7 @@ class ThermalModel(SensorModel[Touches]):
         out[:] = steady[..., None]
         sel = d["touched"]
         if sel.any():
-            model = ContactModel.create(
-                d["heat_capacity"][sel],
-                d["loss"][sel],
-                d["conductance"][sel],
-                d["effusivity"][sel],
-                d["spreading"][sel],
-                d["v0"][sel],
-                0.0,
-            )
+            model = ContactModel.of_touched(d)
             excess = touch_excess if self.reference else record_excess
             v = excess(self.time_s, model, d["onset"][sel], d["release"][sel])
             v += d["object_c"][sel][:, None]  # in place: the same sum as object_c + v

@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from synth.errors import InputError
-from synth.materials import get_material
 from synth.sensors.thermal import phi
 from synth.sensors.thermal.dynamics import ChannelModel, channel_response, channel_terms, phi_integral
-from tests.thermal_reference import reference_channel
+from tests.thermal_reference import channel_of_material, reference_channel, relative_max_error
 
 T = np.geomspace(0.02, 8.0, 60)
 
@@ -29,47 +28,38 @@ CASES = [
 ]
 
 
-def _model(material: str, params: dict[str, float]) -> tuple[ChannelModel, float, float]:
-    m = get_material(material)
-    return ChannelModel.create(effusivity=m.effusivity, **params), m.k_w_mk, m.diffusivity_mm2_s * 1e-6
-
-
-def _close(closed: np.ndarray, ref: np.ndarray) -> float:
-    return float(np.max(np.abs(closed - ref)) / np.max(np.abs(ref)))
-
-
 @pytest.mark.parametrize(("material", "params"), CASES)
 def test_object_step_matches_the_reference(material: str, params: dict[str, float]) -> None:
-    model, k, alpha = _model(material, params)
+    model, k, alpha = channel_of_material(material, params)
     closed = channel_response(model, np.array([7.0]), T[None, :])[0]
     ref = reference_channel(T, k_w_mk=k, diffusivity_m2_s=alpha, v0=7.0, **params)
-    assert _close(closed, ref) <= 0.01
+    assert relative_max_error(closed, ref) <= 0.01
 
 
 @pytest.mark.parametrize(("material", "params"), [c for c in CASES if "kp" not in c[1]])
 def test_drift_and_heater_switch_off_match_the_reference(material: str, params: dict[str, float]) -> None:
     """A reading drifting at 0.2 K/s before contact (the net heating goes on, the lags' lead decays)
     and a heater switched off 0.4 s into the contact."""
-    model, k, alpha = _model(material, params)
+    model, k, alpha = channel_of_material(material, params)
     terms = channel_terms(model, T[None, :], 0.0, np.array([0.4]))
     ref_drift = reference_channel(T, k_w_mk=k, diffusivity_m2_s=alpha, v0=0.0, drift_k_s=0.2, **params)
-    assert _close(0.2 * terms.drift[0], ref_drift) <= 0.01
+    assert relative_max_error(0.2 * terms.drift[0], ref_drift) <= 0.01
     assert terms.power is not None
     ref_power = reference_channel(
         T, k_w_mk=k, diffusivity_m2_s=alpha, v0=0.0, power_step=-1500.0, power_step_s=0.4, **params
     )
-    assert _close(-1500.0 * terms.power[0], ref_power) <= 0.01
+    assert relative_max_error(-1500.0 * terms.power[0], ref_power) <= 0.01
     # the whole reading is their sum (linear): object, drift and switch-off together
     both = reference_channel(
         T, k_w_mk=k, diffusivity_m2_s=alpha, v0=5.0, drift_k_s=0.2, power_step=-1500.0, power_step_s=0.4, **params
     )
     # (V0 is the body's temperature minus the object's at the onset, as in the reference)
     closed = 0.2 * terms.drift[0] + 5.0 * terms.obj[0] - 1500.0 * terms.power[0]
-    assert _close(closed, both) <= 0.01
+    assert relative_max_error(closed, both) <= 0.01
 
 
 def test_drift_is_continuous_at_the_onset_and_a_ramp_before_it() -> None:
-    model, _, _ = _model("oak", dict(CASES[0][1]))
+    model, _, _ = channel_of_material("oak", dict(CASES[0][1]))
     t = np.linspace(-1.0, 1.0, 401)[None, :]
     drift = channel_terms(model, t).drift[0]
     assert np.allclose(drift[t[0] <= 0], t[0][t[0] <= 0])
@@ -80,7 +70,7 @@ def test_drift_is_continuous_at_the_onset_and_a_ramp_before_it() -> None:
 def test_contact_build_up_is_the_average_of_staggered_step_contacts(ramp: float) -> None:
     """The build-up term is defined as the mean of step contacts starting uniformly over the ramp:
     its closed form (Psi differences) against 200 shifted step responses."""
-    model, _, _ = _model("oak", dict(CASES[1][1]))
+    model, _, _ = channel_of_material("oak", dict(CASES[1][1]))
     t = np.linspace(-0.5, 6.0, 131)
     smooth = channel_terms(model, t[None, :], ramp).obj[0]
     shifts = (np.arange(200) + 0.5) / 200 * ramp
@@ -110,6 +100,6 @@ def test_unstable_controller_is_refused() -> None:
 def test_bad_parameters_are_refused() -> None:
     with pytest.raises(InputError, match="conductance"):
         ChannelModel.create(heat_capacity=1.0, loss=1.0, conductance=-1.0, effusivity=400.0)
-    model, _, _ = _model("oak", dict(CASES[1][1]))
+    model, _, _ = channel_of_material("oak", dict(CASES[1][1]))
     with pytest.raises(InputError, match="ramp_s"):
         channel_terms(model, T[None, :], -0.1)

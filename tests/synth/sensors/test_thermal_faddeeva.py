@@ -71,16 +71,7 @@ def test_the_simulators_complex_arguments_lie_in_the_verified_region(name: str) 
     scene = load_scene(name).with_noise(False)
     sim = make_simulator(scene)
     d = sim.draw(400, np.random.default_rng(8)).params
-    sel = d["touched"]
-    model = ContactModel.create(
-        d["heat_capacity"][sel],
-        d["loss"][sel],
-        d["conductance"][sel],
-        d["effusivity"][sel],
-        d["spreading"][sel],
-        d["v0"][sel],
-        0.0,
-    )
+    model = ContactModel.of_touched(d)
     roots, _ = model.poles
     assert (roots.real < 0).all()
     pairs = roots[roots.imag != 0]  # the real roots take the real erfcx

@@ -10,7 +10,7 @@ import pytest
 from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
-from tests.thermal_reference import reference_channel
+from tests.thermal_reference import channel_of_material, reference_channel, relative_max_error
 
 T = np.geomspace(0.02, 8.0, 60)
 
@@ -23,33 +23,24 @@ CASES = [
 ]
 
 
-def _model(material: str, params: dict[str, float]) -> tuple[ChannelModel, float, float]:
-    m = get_material(material)
-    return ChannelModel.create(effusivity=m.effusivity, **params), m.k_w_mk, m.diffusivity_mm2_s * 1e-6
-
-
-def _close(closed: np.ndarray, ref: np.ndarray) -> float:
-    return float(np.max(np.abs(closed - ref)) / np.max(np.abs(ref)))
-
-
 @pytest.mark.parametrize(("material", "params"), CASES)
 @pytest.mark.parametrize("gradient", [-60.0, 25.0])
 def test_object_gradient_flux_matches_the_reference(material: str, params: dict[str, float], gradient: float) -> None:
     """An object whose temperature changes with depth (K/m) before contact: ``F = k g`` reaches the
     surface, and the reading moves by ``F`` times the flux term."""
-    model, k, alpha = _model(material, params)
+    model, k, alpha = channel_of_material(material, params)
     flux = nuisance_terms(model, T[None, :]).flux[0]
     ref = reference_channel(T, k_w_mk=k, diffusivity_m2_s=alpha, v0=0.0, gradient_k_m=gradient, **params)
-    assert _close(k * gradient * flux, ref) <= 0.01
+    assert relative_max_error(k * gradient * flux, ref) <= 0.01
     # with an object temperature step as well: the sum (linear)
     obj = channel_terms(model, T[None, :]).obj[0]
     both = reference_channel(T, k_w_mk=k, diffusivity_m2_s=alpha, v0=4.0, gradient_k_m=gradient, **params)
-    assert _close(4.0 * obj + k * gradient * flux, both) <= 0.01
+    assert relative_max_error(4.0 * obj + k * gradient * flux, both) <= 0.01
 
 
 @pytest.mark.parametrize(("material", "params"), CASES)
 def test_heater_steps_at_several_times_match_the_reference(material: str, params: dict[str, float]) -> None:
-    model, k, alpha = _model(material, params)
+    model, k, alpha = channel_of_material(material, params)
     terms = nuisance_terms(model, T[None, :], 0.0, (np.array([0.0]), np.array([0.7])))
     for j, (amount, at) in enumerate(((2000.0, 0.0), (-1500.0, 0.7))):
         ref = reference_channel(
@@ -59,7 +50,7 @@ def test_heater_steps_at_several_times_match_the_reference(material: str, params
             ref = reference_channel(
                 T, k_w_mk=k, diffusivity_m2_s=alpha, v0=0.0, power_step=amount, power_step_s=1e-9, **params
             )
-        assert _close(amount * terms.steps[j, 0], ref) <= 0.01
+        assert relative_max_error(amount * terms.steps[j, 0], ref) <= 0.01
     # the same step as channel_terms' single heater change
     single = channel_terms(model, T[None, :], 0.0, np.array([0.7])).power
     assert single is not None
@@ -69,7 +60,7 @@ def test_heater_steps_at_several_times_match_the_reference(material: str, params
 @pytest.mark.parametrize("ramp", [0.1, 0.8])
 def test_flux_builds_up_with_the_contact(ramp: float) -> None:
     """With a contact that builds up over ``ramp``: the mean of step fluxes starting over the ramp."""
-    model, _, _ = _model("oak", dict(CASES[1][1]))
+    model, _, _ = channel_of_material("oak", dict(CASES[1][1]))
     t = np.linspace(-0.5, 6.0, 131)
     smooth = nuisance_terms(model, t[None, :], ramp).flux[0]
     shifts = (np.arange(200) + 0.5) / 200 * ramp
@@ -95,6 +86,6 @@ def test_controlled_channel_flux_settles_back() -> None:
 
 
 def test_negative_ramp_is_refused() -> None:
-    model, _, _ = _model("oak", dict(CASES[1][1]))
+    model, _, _ = channel_of_material("oak", dict(CASES[1][1]))
     with pytest.raises(InputError, match="ramp_s"):
         nuisance_terms(model, T[None, :], -0.1)

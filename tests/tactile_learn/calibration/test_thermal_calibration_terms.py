@@ -8,15 +8,13 @@ import numpy as np
 import pytest
 
 from synth.materials import get_material
-from synth.sensors.thermal import make_simulator
 from tactile_learn.calibration.thermal_calibration import (
     PRIOR_ROW_TOUCH_K,
     FitTouch,
     _Problem,
-    noise_levels,
     prepare_touches,
 )
-from tests.tactile_learn.test_thermal_real import robot_scene
+from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 
@@ -24,18 +22,8 @@ CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 @pytest.fixture(scope="module")
 def simulated() -> tuple[list[FitTouch], dict[str, dict[str, float]]]:
     scene = robot_scene(**{"objects.offset_k": [-10.0, -4.0]})
-    arrays = make_simulator(scene).simulate(4, np.random.default_rng(11))  # type: ignore[arg-type]
-    fs = scene.sensor.readout.sampling_hz  # type: ignore[attr-defined]
-    t = np.arange(arrays["readings"].shape[-1]) / fs
-    series, heated, passive = [], [], []
-    for i in range(4):
-        onset = float(arrays["latent_onset_s"][i, 0])
-        h = arrays["readings"][i, 0].astype(np.float64)
-        p = arrays["passive"][i, 0].astype(np.float64)
-        series.append((f"t{i}", int(arrays["latent_class"][i, 0]), t, h, p, onset))
-        heated.append((t, h, onset))
-        passive.append((t, p, onset))
-    return prepare_touches(series), {"heated": noise_levels(heated), "passive": noise_levels(passive)}
+    series, noise, _ = simulated_series(scene, 4, 11)
+    return prepare_touches(series), noise
 
 
 def test_noise_weights(simulated: tuple[list[FitTouch], dict[str, dict[str, float]]]) -> None:

@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 
 from synth.materials import get_material
-from synth.sensors.thermal import make_simulator
-from tactile_learn.calibration.thermal_calibration import calibrate_channels, noise_levels, prepare_touches
-from tests.tactile_learn.test_thermal_real import robot_scene
+from tactile_learn.calibration.thermal_calibration import calibrate_channels, prepare_touches
+from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
 
 pytestmark = pytest.mark.slow  # a 4-touch calibration: ~25 s of CPU
 
@@ -20,19 +19,8 @@ pytestmark = pytest.mark.slow  # a 4-touch calibration: ~25 s of CPU
 @pytest.fixture(scope="module")
 def fitted() -> tuple[dict[str, Any], np.ndarray]:
     scene = robot_scene(**{"contact.conductance_w_m2k": [450.0, 2200.0], "objects.offset_k": [-12.0, -6.0]})
-    arrays = make_simulator(scene).simulate(4, np.random.default_rng(5))  # type: ignore[arg-type]
-    fs = scene.sensor.readout.sampling_hz  # type: ignore[attr-defined]
-    t = np.arange(arrays["readings"].shape[-1]) / fs
+    series, noise, arrays = simulated_series(scene, 4, 5)
     names = scene.sensor.class_names  # type: ignore[attr-defined]
-    series, heated, passive = [], [], []
-    for i in range(4):
-        onset = float(arrays["latent_onset_s"][i, 0])
-        h = arrays["readings"][i, 0].astype(np.float64)
-        p = arrays["passive"][i, 0].astype(np.float64)
-        series.append((f"t{i}", int(arrays["latent_class"][i, 0]), t, h, p, onset))
-        heated.append((t, h, onset))
-        passive.append((t, p, onset))
-    noise = {"heated": noise_levels(heated), "passive": noise_levels(passive)}
     classes = [[get_material("aluminium")], [get_material("oak")]]
     assert list(names) == ["metal", "wood"]
     result = calibrate_channels(prepare_touches(series), classes, noise, starts=2)
