@@ -107,14 +107,17 @@ class StartFactoredBases:
         proj = np.matmul(z[: n_starts * width].reshape(n_starts, 1, width), second)
         proj *= proj
         # |Q^T y|^2 of every (start, template), its best start, then the best of each class
-        by_design = np.add.reduce(proj.reshape(n_starts, n_cols, -1), axis=1)
+        flat, m = proj.reshape(n_starts, -1), second.shape[2] // n_cols
+        by_design = flat[:, :m]
+        for column in range(1, n_cols):  # a sum over a short axis: adds of slices beat a reduce
+            by_design = by_design + flat[:, column * m : (column + 1) * m]
         best = np.maximum.reduceat(np.maximum.reduce(by_design, axis=0), self.class_start)
         yy = float(y @ y)
         scores = np.empty(len(best) + 1)
         scores[:-1] = best
         scores[-1] = float(lines @ lines)
         # residual sums of squares |y|^2 - |Q^T y|^2, clamped at 0 (which rounding can go below),
-        # as scores; the batch path's numbers in its order of operations
+        # as scores: the batch path's formula (its sums in another order: the last bits may differ)
         np.minimum(scores, yy, out=scores)
         np.subtract(yy, scores, out=scores)
         scores *= self.scale
