@@ -28,6 +28,12 @@ _STEP_LIMIT = (5.0, 5.0, 1.0)  # as fsr_check._STEP_LO/_STEP_HI: a step's larges
 _FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force at 1e-3 (N)
 
 
+def _log_force(force: float) -> float:
+    """log of a float32 force (N) clipped at 1 mN, taken in float32 (as the batch path's
+    ``_log_force``)."""
+    return float(np.log(np.float32(max(force, _FORCE_FLOOR))))
+
+
 def expit(z: float) -> float:
     """The logistic function as scipy computes it, ``1 / (1 + exp(-z))``; where ``exp(-z)``
     overflows (``math.exp`` raises, numpy gives inf) the result is 0, as numpy's."""
@@ -215,17 +221,20 @@ class OneFrameCheck:
                 damping *= 5.0
         return math.sqrt(cost / n) / scale_m
 
-    def p_one_press(self, codes: list[float], estimate: list[float]) -> float:
+    def p_one_press(self, codes: list[float], estimate: list[float], screen: list[float] | None = None) -> float:
         """The flag of one frame (:meth:`OnePressCheck.p_one_press`): ``codes`` its six nominal-film
-        readings, ``estimate`` its first five columns (cheapest first, as the batch path)."""
+        readings, ``estimate`` its first five columns (cheapest first, as the batch path);
+        ``screen``: a better point (x, y, force; float32 values) tried as it is first."""
         if not estimate[3] > 0.5:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
         measured = self.measured(codes)
-        # in float32, as the batch path takes the log of the float32 estimate
-        log_force = float(np.log(np.float32(max(estimate[2], _FORCE_FLOOR))))
-        start = [float(estimate[0]), float(estimate[1]), log_force]
+        if screen is not None:  # the screen's point first, as the batch path
+            at_screen = self.conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
+            if self.misfit(measured, at_screen) <= self.threshold:
+                return 1.0
+        start = [float(estimate[0]), float(estimate[1]), _log_force(estimate[2])]
         base = self.conductance(*start)
         if self.misfit(measured, base) <= self.threshold:
             return 1.0
@@ -235,4 +244,4 @@ class OneFrameCheck:
         total = sum(weights)
         cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
         cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
-        return 1.0 if self.refined_misfit(measured, [cx, cy, log_force], self.threshold) <= self.threshold else 0.0
+        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], self.threshold) <= self.threshold else 0.0

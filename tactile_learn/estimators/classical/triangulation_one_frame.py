@@ -59,6 +59,7 @@ class OneFrameTriangulation:
         self.neg_inv_m = -1.0 / model.m
         self.h2 = model.h_mm**2
         self.on_axis = max(model.on_axis, 1e-300)
+        self.loads_of_codes_array = loads_of_codes
         self.loads_of_codes = loads_of_codes.tolist()
         self.loads_from_readings = loads_from_readings
         #: the disc load of every whole code that the input check passes as it is (``valid_codes``:

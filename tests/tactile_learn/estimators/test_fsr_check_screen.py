@@ -1,0 +1,103 @@
+"""The one-press check's screen (``OnePressCheck.p_one_press(..., screen)``): the half-space
+triangulation hands the check the fitted kernel's solution of the same loads, tried as it is
+before the refinements. It only adds a way to pass, so it must leave the flags as they were (on
+single presses, two presses and flat indenters, batch and single frames alike) while sparing the
+refinement of most genuine presses."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from synth.config import replace
+from synth.scene import Scene, load_scene
+from synth.sensors import fsr
+from tactile_learn.estimators.classical.triangulation import FittedTriangulationEstimator, TriangulationEstimator
+from tactile_learn.fsr_check import OnePressCheck, one_press_check
+
+SCENE = load_scene("fsr6")
+
+
+def _scene(**stimulus: object) -> Scene:
+    config = SCENE.sensor
+    for key, value in {"no_contact_fraction": 0.0, "inside_fraction": 1.0, **stimulus}.items():
+        config = replace(config, f"stimulus.{key}", value)
+    return dataclasses.replace(SCENE, sensor=config)
+
+
+def _readings() -> np.ndarray:
+    """Single presses (fsr6), two presses and flat indenters, a held-out seed."""
+    parts = [fsr.make_simulator(SCENE).simulate(300, np.random.default_rng(91))["readings"]]
+    for seed, kind in ((92, "second_press_fraction"), (93, "flat_fraction")):
+        parts.append(fsr.make_simulator(_scene(**{kind: 1.0})).simulate(200, np.random.default_rng(seed))["readings"])
+    return np.ascontiguousarray(np.concatenate(parts), dtype=np.float32)
+
+
+READINGS = _readings()
+
+
+def _unscreened(est: TriangulationEstimator, readings: np.ndarray) -> np.ndarray:
+    """The estimator's flags with the check run on its own estimate only (no screen)."""
+    estimate = est.predict_batch(readings)[:, :5]
+    return est.check_.p_one_press(readings, estimate)
+
+
+def test_the_screen_leaves_the_flags_as_they_were() -> None:
+    est = TriangulationEstimator(SCENE).prepare()
+    assert est.screen_model_ is not None
+    screened = est.predict(READINGS)
+    single = np.concatenate([est.predict(READINGS[i : i + 1]) for i in range(len(READINGS))])
+    unscreened = _unscreened(est, READINGS)
+    np.testing.assert_array_equal(screened[:, 5], unscreened)
+    np.testing.assert_array_equal(single[:, 5], unscreened)
+    # the frames cover every verdict, and two presses are caught at all
+    assert {0.0, 0.5, 1.0} <= set(unscreened.tolist())
+    assert (unscreened[300:500][screened[300:500, 3] > 0.5] == 0.0).mean() > 0.2
+
+
+def test_the_screen_spares_most_refinements(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Genuine presses: without the screen nearly every one the check reaches is refined (the
+    half-space estimate is a poor start); with it, few are."""
+    est = TriangulationEstimator(SCENE).prepare()
+    presses = READINGS[:300]
+    refined: list[int] = []
+    original = OnePressCheck._refined_misfit
+
+    def counted(self: OnePressCheck, measured: np.ndarray, *args: object, **kwargs: object) -> np.ndarray:
+        refined.append(len(measured))
+        return original(self, measured, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(OnePressCheck, "_refined_misfit", counted)
+    _unscreened(est, presses)
+    without = sum(refined)
+    refined.clear()
+    est.predict(presses)
+    with_screen = sum(refined)
+    checked = int(((est.predict(presses)[:, 3] > 0.5) & (est.predict(presses)[:, 4] > 0.5)).sum())
+    assert without >= 0.8 * checked > 50
+    assert with_screen <= 0.3 * without
+
+
+def test_a_screen_on_one_frame_equals_the_batch_screen() -> None:
+    """The check with a screen, single frames against the batch (a screen point off by a few mm
+    on half the frames, so that both outcomes of the screen occur)."""
+    check = one_press_check(SCENE).prepare()
+    est = TriangulationEstimator(SCENE).prepare()
+    estimate = est.predict_batch(READINGS)[:, :5]
+    point = FittedTriangulationEstimator(SCENE).prepare().predict_batch(READINGS)[:, :3].copy()
+    point[::2, :2] += np.random.default_rng(4).normal(0.0, 3.0, (len(point[::2]), 2)).astype(np.float32)
+    batch = check.p_one_press(READINGS, estimate, lambda rows: point[rows])
+    single = [
+        check.one_frame.p_one_press(f.tolist(), e.tolist(), p.tolist())
+        for f, e, p in zip(READINGS, estimate, point, strict=True)
+    ]
+    np.testing.assert_array_equal(single, batch)
+    np.testing.assert_array_equal(batch, check.p_one_press(READINGS, estimate))  # same flags as unscreened
+
+
+def test_the_fitted_kernel_needs_no_screen() -> None:
+    """triangulation_fit's own estimate is the fitted kernel's solution: no second one."""
+    est = FittedTriangulationEstimator(SCENE).prepare()
+    assert est.screen_model_ is None and est.screen_one_frame_ is None
