@@ -195,6 +195,7 @@ class TriangleGeometry:
         return np.concatenate([1.0 - l12.sum(-1, keepdims=True), l12], axis=-1)
 
 
+_ONE_FRAME, _FLOAT32 = (1, fsr.N_SENSORS), np.dtype(np.float32)  # a single frame that takes the fast path
 _SCREEN_MODELS: dict[tuple[str, float], LoadModel] = {}
 
 
@@ -430,7 +431,7 @@ class TriangulationEstimator(Estimator):
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         one: OneFrameTriangulation = self.prepared_state("one_frame_")
-        if type(X) is np.ndarray and X.shape == (1, fsr.N_SENSORS) and X.dtype == np.float32:
+        if type(X) is np.ndarray and X.shape == _ONE_FRAME and X.dtype is _FLOAT32:
             # one frame (a stream): six whole codes the input check passes are keys of the
             # code -> load table (NaN, inf, codes out of range or between two codes are not)
             codes = X.tolist()[0]
@@ -453,17 +454,22 @@ class TriangulationEstimator(Estimator):
 
     def _predict_loads(self, one: OneFrameTriangulation, codes: list[float], loads: list[float]) -> np.ndarray:
         """:meth:`_predict_frame` from the frame's disc loads (looked up already)."""
-        estimate = one.estimate_loads(loads)
-        if not estimate[3]:  # no contact: every column 0
+        choice = one.choice(loads)
+        if choice is None:  # no contact: every column 0
             return np.zeros((1, 6), dtype=np.float32)
+        estimate = one.estimate_choice(choice)
         # the check reads the float32 estimate, as in the batch path (array "f": float32 rounding,
         # to nearest as numpy's cast; beyond float32's range inf, as numpy)
         rounded = array("f", estimate).tolist()
         screen: OneFrameTriangulation | None = self.screen_one_frame_
         if screen is None or not estimate[4] > 0.5:  # no screen, or a frame the check leaves alone
-            return np.array([[*rounded, self.check_.one_frame.p_one_press(codes, rounded)]], dtype=np.float32)
-        point = array("f", screen.estimate_loads(loads)).tolist()
-        return np.array([[*rounded, self.check_.one_frame.p_one_press(codes, rounded, point)]], dtype=np.float32)
+            flag = self.check_.one_frame.p_one_press(codes, rounded)
+        else:  # the fitted kernel's solution: the same film, geometry and valid load share the choice
+            point = array("f", screen.estimate_choice(choice)).tolist()
+            flag = self.check_.one_frame.p_one_press(codes, rounded, point)
+        out = np.empty((1, 6), dtype=np.float32)
+        out[0] = [*rounded, flag]  # (float32 values already: exact)
+        return out
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
         """A function of one validated frame ``(1, 6)`` giving what :meth:`predict_checked` gives,

@@ -26,7 +26,11 @@ import numpy as np
 if TYPE_CHECKING:  # the batch module imports this one
     from tactile_learn.estimators.classical.triangulation import LoadModel, TriangleGeometry
 
-__all__ = ["OneFrameTriangulation"]
+__all__ = ["Choice", "OneFrameTriangulation"]
+
+#: a frame's triangle choice (:meth:`OneFrameTriangulation.choice`): each triangle's three loads,
+#: each triangle's valid sensors, the most of them, the largest summed load
+Choice = tuple[list[tuple[float, float, float]], list[int], int, float]
 
 
 def _argmax(values: list[float] | tuple[float, ...]) -> int:
@@ -161,14 +165,18 @@ class OneFrameTriangulation:
         return self.estimate_loads(self.loads(codes))
 
     def estimate_loads(self, loads: list[float]) -> list[float]:
-        """:meth:`estimate` from the frame's six disc loads (N).
+        """:meth:`estimate` from the frame's six disc loads (N)."""
+        choice = self.choice(loads)
+        return [0.0, 0.0, 0.0, 0.0, 0.0] if choice is None else self.estimate_choice(choice)
 
-        Only the triangles with the most valid sensors are solved: the winner's score counts its
-        valid sensors in millions and everything else below 102,000, so no other triangle can win.
-        """
+    def choice(self, loads: list[float]) -> Choice | None:
+        """What the triangle choice reads besides the load model: every triangle's three loads and
+        valid sensors, the most valid sensors of any triangle and the largest summed load; none
+        for a frame without contact. (Another load model on the same film, geometry and valid load
+        shares it: :meth:`estimate_choice` of either.)"""
         min_load = self.min_load
         if not max(loads) >= min_load:  # no contact: all outputs 0
-            return [0.0, 0.0, 0.0, 0.0, 0.0]
+            return None
         picked = [pick(loads) for pick in self._pick]
         valid, most, top = [], 0, 1e-300  # every triangle's valid sensors; the largest summed load
         for f0, f1, f2 in picked:
@@ -177,6 +185,15 @@ class OneFrameTriangulation:
             most = n_valid if n_valid > most else most
             total = f0 + f1 + f2  # as _solve sums it
             top = total if total > top else top
+        return picked, valid, most, top
+
+    def estimate_choice(self, choice: Choice) -> list[float]:
+        """The five columns of a frame with contact from its :meth:`choice`.
+
+        Only the triangles with the most valid sensors are solved: the winner's score counts its
+        valid sensors in millions and everything else below 102,000, so no other triangle can win.
+        """
+        picked, valid, most, top = choice
         best: tuple[float, float, float, int, bool, float, float] | None = None
         best_score = 0.0
         solve, triangles = self._solve, self.triangles
