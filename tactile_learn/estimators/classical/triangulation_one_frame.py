@@ -191,9 +191,22 @@ class OneFrameTriangulation:
         """The five columns of a frame with contact from its :meth:`choice`.
 
         Only the triangles with the most valid sensors are solved: the winner's score counts its
-        valid sensors in millions and everything else below 102,000, so no other triangle can win.
+        valid sensors in millions and everything else below 102,000, so no other triangle can win
+        (and where only one triangle has the most, it wins without a score).
         """
         picked, valid, most, top = choice
+        if valid.count(most) == 1:  # one candidate (most frames with contact)
+            t = valid.index(most)
+            best = self._solve(picked[t], self.triangles[t])
+        else:
+            best = self._best_scored(picked, valid, most, top)
+        x, y, force, n_valid, inside, _, _ = best
+        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+
+    def _best_scored(
+        self, picked: list[tuple[float, float, float]], valid: list[int], most: int, top: float
+    ) -> tuple[float, float, float, int, bool, float, float]:
+        """The best-scoring solution among the triangles with the most valid sensors."""
         best: tuple[float, float, float, int, bool, float, float] | None = None
         best_score = 0.0
         solve, triangles = self._solve, self.triangles
@@ -209,5 +222,4 @@ class OneFrameTriangulation:
             if best is None or score > best_score:
                 best, best_score = s, score
         assert best is not None  # the triangles with the most valid sensors: at least one
-        x, y, force, n_valid, inside, _, _ = best
-        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+        return best
