@@ -271,9 +271,12 @@ class OnePressCheck:
 
         ``screen``: for an estimator whose own estimate is a poor start (the half-space kernel's
         triangulation: none of its estimates passes as it is), a function giving a better point
-        ``(n, 3)`` (x, y, force; float32) for the frames (row indices of ``readings``) it is handed;
-        that point is tried as it is first. A frame passes if any stage does: a screen only adds a
-        way to pass, tried before the refinements it saves."""
+        ``(n, 3)`` (x, y, force; float32) for the frames (row indices of ``readings``) it is handed,
+        tried as it is. A frame passes if any stage does, so where the screen comes changes only the
+        cost: on a few frames (and on a single frame, :mod:`tactile_learn.fsr_one_frame`) before
+        the refinements it may spare; on many after the refinement from the estimate, where
+        refining many frames at once costs less than the screen's second closed form for all.
+        """
         out = np.zeros(len(estimate), dtype=np.float32)
         detected = estimate[:, 3] > 0.5
         if not detected.any():  # nothing to check (a stream's frames without contact)
@@ -287,18 +290,15 @@ class OnePressCheck:
         config, _, readout, _ = self._model
         measured = readout.conductance_us(np.asarray(readings, dtype=np.float64)[contact])
         start = _start(estimate[contact])
-        log_force = start[:, 2]
-        if screen is None:
-            passed = self._passes_as_it_is(measured, start)
-        else:  # the screen's point first, then the estimate where that does not pass
-            passed = self._passes_as_it_is(measured, _start(screen(contact)))
-            undecided = np.flatnonzero(~passed)
-            passed[undecided] = self._passes_as_it_is(measured[undecided], start[undecided])
+        passed = self._passes_as_it_is(measured, start)
         doubt = np.flatnonzero(~passed)
+        if screen is not None and 0 < doubt.size <= JOINT_STARTS_MAX:  # few frames: the screen first
+            passed[doubt] = self._passes_as_it_is(measured[doubt], _start(screen(contact[doubt])))
+            doubt = np.flatnonzero(~passed)
         if doubt.size:
             weights = np.maximum(measured[doubt] - config.element.leak_conductance_us, 0.0) + 1e-12
             centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
-            second = np.column_stack([centroid, log_force[doubt]])
+            second = np.column_stack([centroid, start[doubt, 2]])
             if doubt.size <= JOINT_STARTS_MAX:  # few frames (a stream): both starts in one pass
                 n = doubt.size  # row i and row i + n: the two starts of one frame
                 both = self._refined_misfit(
@@ -310,8 +310,12 @@ class OnePressCheck:
                 passed[doubt] = (both <= self.threshold).reshape(2, -1).any(axis=0)
             else:
                 passed[doubt] = self._refined_misfit(measured[doubt], start[doubt], self.threshold) <= self.threshold
-                still = ~passed[doubt]
-                if still.any():
+                still = np.flatnonzero(~passed[doubt])
+                if screen is not None and still.size:  # many frames: the screen after this refinement
+                    rows = doubt[still]
+                    passed[rows] = self._passes_as_it_is(measured[rows], _start(screen(contact[rows])))
+                    still = still[~passed[rows]]
+                if still.size:
                     refined = self._refined_misfit(measured[doubt[still]], second[still], self.threshold)
                     passed[doubt[still]] = refined <= self.threshold
         out[contact] = passed.astype(np.float32)
