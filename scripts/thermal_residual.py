@@ -36,6 +36,8 @@ VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "contact_precursor": (("contact_precursor",), False),
     "weighted": ((), True),
     "contact_precursor+weighted": (("contact_precursor",), True),
+    "approach": (("approach",), False),
+    "approach+weighted": (("approach",), True),
 }
 
 
