@@ -753,7 +753,8 @@ _BOUND_REASONS = {
     "temperature give it no signal): held at a tenth of the heated twin's",
     ("conductance_ratio", "lower"): "the passive channel's contact is not identified: held at the bound",
     ("gap_um", "upper"): "the approach passes no heat the curves show: the gap model is not asked for",
-    ("gap_um", "lower"): "the gap closes to nothing: the approach's exchange at contact is the whole contact's",
+    ("gap_um", "lower"): "the gap closes to nothing: a residual gap below the contact's own resistance (k_air / H, "
+    "~40 um) changes nothing the curves show, so it is not identified either; the approach speed carries the term",
     ("speed_mm_s", "upper"): "the gap closes faster than the samples resolve: the approach acts as a step at contact",
     ("speed_mm_s", "lower"): "the gap stays narrow for the whole window: the approach is a slow, flat exchange",
     ("", ""): "the data push it there: the model lacks something the curves show (check the residual)",
