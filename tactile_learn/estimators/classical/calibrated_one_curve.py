@@ -95,6 +95,34 @@ class StartFactoredBases:
         class_start = np.flatnonzero(np.r_[True, sorted_class[1:] != sorted_class[:-1]])
         return cls(first, second, class_start, n_cols, centred, -1.0 / (2.0 * sigma**2), none_bonus)
 
+    def scores(self, y: np.ndarray) -> np.ndarray:
+        """The class scores ``-RSS / (2 sigma^2)`` (b, K + 1) of the curves ``y`` (b, C W) float64, a
+        copy of their own (centred in place): a batch's product with every start's ``U_s``, then one
+        batched product per start with its ``C_s`` (a batch reads the bases once for all its curves;
+        the factored products are ~2.5 times fewer multiply-adds than the dense bases')."""
+        if self.centred:
+            y -= y.mean(axis=1, keepdims=True)
+        second = self.second
+        n_starts, width, n_cols = second.shape[0], second.shape[1], self.n_columns
+        b, m = len(y), second.shape[2] // n_cols
+        z = y @ self.first
+        lines = z[:, n_starts * width :]
+        proj = np.matmul(z[:, : n_starts * width].reshape(b, n_starts, width).transpose(1, 0, 2), second)
+        proj *= proj  # (S, b, L M)
+        by_design = proj[..., :m]
+        for column in range(1, n_cols):  # a sum over a short axis: adds of slices beat a reduce
+            by_design = by_design + proj[..., column * m : (column + 1) * m]
+        yy = np.einsum("bi,bi->b", y, y)[:, None]
+        scores = np.empty((b, len(self.class_start) + 1))
+        scores[:, :-1] = np.maximum.reduceat(by_design.max(axis=0), self.class_start, axis=1)
+        scores[:, -1] = np.einsum("bi,bi->b", lines, lines)
+        # residual sums of squares |y|^2 - |Q^T y|^2, clamped at 0 (which rounding can go below)
+        np.minimum(scores, yy, out=scores)
+        np.subtract(yy, scores, out=scores)
+        scores *= self.scale
+        scores[:, -1] += self.none_bonus
+        return scores
+
     def probabilities(self, y: np.ndarray) -> np.ndarray:
         """The class probabilities (1, K + 1) of one curve ``y`` (C W,) float64, a copy of its own
         (centred in place): the calibrated fit's batch path's numbers to its rounding (tests)."""
