@@ -99,7 +99,14 @@ class OnnxEstimator(Estimator):
             self.input_check_ = self.task_.input_check(self.scene_)  # the scene's limits, worked out once
             self.finish_ = self.task_.prediction_finisher(self.scene_)
             self.session_ = self._session()
-            self.run_ = (self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"])
+            # predict reads the first output only: a graph with more outputs runs cut down to it
+            # (tactile_learn.onnx_prune; the whole graph where it cannot be cut)
+            self.first_output_session_ = self._first_output_session()
+            self.run_ = (
+                self.first_output_session_.run,
+                [self.card_["outputs"][0]["name"]],
+                self.card_["inputs"][0]["name"],
+            )
             # the batch-1 path of predict: buffers bound to the session, the range checked with
             # one reduction (tactile_learn.onnx_one_frame); None where it does not apply
             self.one_frame_ = self._one_frame_run()
@@ -172,11 +179,9 @@ class OnnxEstimator(Estimator):
     def task_name(self) -> str:
         return str(self.card_["task"])
 
-    def _session(self) -> Any:
-        try:
-            import onnxruntime as ort
-        except ImportError:
-            raise ModelError("onnxruntime is not installed: pip install 'tactile-learn[runtime]'") from None
+    def _session_options(self) -> Any:
+        import onnxruntime as ort
+
         options = ort.SessionOptions()
         options.intra_op_num_threads = self.threads
         options.inter_op_num_threads = 1
@@ -186,6 +191,15 @@ class OnnxEstimator(Estimator):
         if level not in GRAPH_OPTIMIZATION:
             raise ModelError(f"{self.path}: graph_optimization {level!r} is not one of {', '.join(GRAPH_OPTIMIZATION)}")
         options.graph_optimization_level = getattr(ort.GraphOptimizationLevel, f"ORT_ENABLE_{level.upper()}")
+        return options
+
+    def _session(self) -> Any:
+        try:
+            import onnxruntime as ort
+        except ImportError:
+            raise ModelError("onnxruntime is not installed: pip install 'tactile-learn[runtime]'") from None
+        options = self._session_options()
+        card = self.card_
         try:
             session = ort.InferenceSession(str(self.path), sess_options=options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own untyped errors for corrupt graphs
@@ -211,6 +225,18 @@ class OnnxEstimator(Estimator):
         if list(inputs[0].shape[1:]) != list(card["inputs"][0]["shape"][1:]):
             raise ModelError(f"{self.path}: the graph's input shape {inputs[0].shape} does not match the card's")
         return session
+
+    def _first_output_session(self) -> Any:
+        """A session of the checked graph (:meth:`_session`) cut down to its first output
+        (:func:`~tactile_learn.onnx_prune.first_output_graph`), or the whole graph's session."""
+        from tactile_learn.onnx_prune import first_output_graph
+
+        pruned = first_output_graph(self.path)
+        if pruned is None:
+            return self.session_
+        import onnxruntime as ort
+
+        return ort.InferenceSession(pruned, sess_options=self._session_options(), providers=["CPUExecutionProvider"])
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`).
@@ -272,7 +298,7 @@ class OnnxEstimator(Estimator):
         """:meth:`one_frame_run`, checking frames against ``bounds`` (default: the task's)."""
         from tactile_learn.onnx_one_frame import OneFrameRun
 
-        session = self.session_
+        session = self.first_output_session_
         bounds = self.task_.fast_bounds(self.scene_) if bounds is None else bounds
         shape = self.card_["outputs"][0]["shape"][1:]
         if bounds is None or not all(isinstance(d, int) and d > 0 for d in shape):
