@@ -6,6 +6,10 @@ input and output names and shapes) and refuses a corrupt, truncated or mismatche
 :class:`~synth.errors.ModelError`. ``predict`` validates its input against the card's scene with the
 same checks as the classical estimators (shape, dtype, NaN/inf, negative or saturated readings).
 ``prepare()`` loads and checks the model and opens its session, once; ``predict`` changes nothing.
+``predict`` runs the graph cut down to its first output (:mod:`tactile_learn.onnx_prune`;
+``predict_all`` runs the whole graph), and a float32 batch of one frame through buffers bound to
+the session, checked with one reduction (:mod:`tactile_learn.onnx_one_frame`): the batch-1 cost is
+the graph's, plus ~3 us.
 
     from tactile_learn.runtime import OnnxEstimator
     model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
