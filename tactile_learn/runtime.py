@@ -9,7 +9,7 @@ same checks as the classical estimators (shape, dtype, NaN/inf, negative or satu
 ``predict`` runs the graph cut down to its first output (:mod:`tactile_learn.onnx_prune`;
 ``predict_all`` runs the whole graph), and a float32 batch of one frame through buffers bound to
 the session, checked with one reduction (:mod:`tactile_learn.onnx_one_frame`): the batch-1 cost is
-the graph's, plus ~3 us.
+the graph's, plus ~2 us and the task's finishing (FSR: its one-press check).
 
     from tactile_learn.runtime import OnnxEstimator
     model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
