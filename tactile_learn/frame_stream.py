@@ -8,10 +8,11 @@ minimum and maximum against the range: NaN and inf fail too) and calls the estim
 ``predict_checked``. Anything unusual (another dtype or shape, a value out of range, a task whose
 check does more than check) goes through the task's full ``check_inputs``, so bad input gets the
 same clear :class:`~synth.errors.InputError` as ``predict`` gives. A learned model's single frames
-(without a gate) go through an io binding the stream owns
-(:meth:`~tactile_learn.runtime.OnnxEstimator.frame_runner`: the frame copied into a bound input, no
-per-call dicts or allocations inside onnxruntime); a classical method's through its own
-single-frame path (set up in ``prepare``: see each method's docstring).
+(without a gate) go through buffers bound to the session that the stream owns
+(:meth:`~tactile_learn.runtime.OnnxEstimator.one_frame_run`: the frame copied into a bound input
+and range-checked there with one reduction, no per-call dicts or allocations inside onnxruntime);
+a classical method's through its own single-frame path (set up in ``prepare``: see each method's
+docstring).
 
 With ``gate=True`` (or an :class:`~tactile_learn.idle.IdleGate`) the stream also skips idle frames:
 frames within the sensor's noise floor at rest (the model card's ``idle`` entry; for a classical
@@ -98,6 +99,10 @@ class FrameStream:
         # gate's tests watch; its saving is the skipped frames)
         runner = getattr(estimator, "frame_runner", None) if self.gate is None else None
         self._compute_one: Callable[[np.ndarray], np.ndarray] | None = runner() if runner is not None else None
+        # and a plain float32 frame with the check too: the range on its bit patterns in the bound
+        # buffer (tactile_learn.onnx_one_frame), before any of the checks below
+        run_one = getattr(estimator, "one_frame_run", None) if self.gate is None else None
+        self._run_one: Callable[[Any], np.ndarray | None] | None = run_one() if run_one is not None else None
         self.frames = 0
         self.skipped = 0
         # a batch of one small frame: check and gate on Python floats (tactile_learn.stream_one_frame)
@@ -123,6 +128,12 @@ class FrameStream:
 
     def predict(self, frames: Any) -> np.ndarray:
         """The estimator's prediction for ``frames`` (batch first); idle frames answered by the gate."""
+        run_one = self._run_one
+        if run_one is not None:
+            out = run_one(frames)
+            if out is not None:  # a plain valid frame (else the checks below: the answer or the error)
+                self.frames += 1
+                return out
         one = self._one_frame
         verdict = one.plain_verdict(frames) if one is not None else None
         if verdict is not None:  # a valid frame (else the full check below gives its error)

@@ -6,6 +6,10 @@ input and output names and shapes) and refuses a corrupt, truncated or mismatche
 :class:`~synth.errors.ModelError`. ``predict`` validates its input against the card's scene with the
 same checks as the classical estimators (shape, dtype, NaN/inf, negative or saturated readings).
 ``prepare()`` loads and checks the model and opens its session, once; ``predict`` changes nothing.
+``predict`` runs the graph cut down to its first output (:mod:`tactile_learn.onnx_prune`;
+``predict_all`` runs the whole graph), and a float32 batch of one frame through buffers bound to
+the session, checked with one reduction (:mod:`tactile_learn.onnx_one_frame`): the batch-1 cost is
+the graph's, plus ~2 us and the task's finishing (FSR: its one-press check).
 
     from tactile_learn.runtime import OnnxEstimator
     model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
@@ -28,6 +32,7 @@ from synth.scene import Scene, parse_scene
 from tactile_learn.estimators.base import Estimator
 
 if TYPE_CHECKING:
+    from tactile_learn.onnx_one_frame import OneFrameRun
     from tactile_learn.tasks.base import Task
 
 __all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "card_path", "read_card"]
@@ -98,14 +103,17 @@ class OnnxEstimator(Estimator):
             self.input_check_ = self.task_.input_check(self.scene_)  # the scene's limits, worked out once
             self.finish_ = self.task_.prediction_finisher(self.scene_)
             self.session_ = self._session()
-            self.run_ = (self.session_.run, [self.card_["outputs"][0]["name"]], self.card_["inputs"][0]["name"])
-            # one frame of a few values (FSR: six readings) checked on Python floats, as a stream
-            # does (tactile_learn.stream_one_frame); None where it does not apply
-            from tactile_learn.stream_one_frame import OneFrameGate
-
-            self.frame_check_ = OneFrameGate.build(
-                tuple(self.input_shape(self.scene_)), self.task_.fast_bounds(self.scene_), None
+            # predict reads the first output only: a graph with more outputs runs cut down to it
+            # (tactile_learn.onnx_prune; the whole graph where it cannot be cut)
+            self.first_output_session_ = self._first_output_session()
+            self.run_ = (
+                self.first_output_session_.run,
+                [self.card_["outputs"][0]["name"]],
+                self.card_["inputs"][0]["name"],
             )
+            # the batch-1 path of predict: buffers bound to the session, the range checked with
+            # one reduction (tactile_learn.onnx_one_frame); None where it does not apply
+            self.one_frame_ = self._one_frame_run()
         return self
 
     @property
@@ -175,11 +183,9 @@ class OnnxEstimator(Estimator):
     def task_name(self) -> str:
         return str(self.card_["task"])
 
-    def _session(self) -> Any:
-        try:
-            import onnxruntime as ort
-        except ImportError:
-            raise ModelError("onnxruntime is not installed: pip install 'tactile-learn[runtime]'") from None
+    def _session_options(self) -> Any:
+        import onnxruntime as ort
+
         options = ort.SessionOptions()
         options.intra_op_num_threads = self.threads
         options.inter_op_num_threads = 1
@@ -189,6 +195,15 @@ class OnnxEstimator(Estimator):
         if level not in GRAPH_OPTIMIZATION:
             raise ModelError(f"{self.path}: graph_optimization {level!r} is not one of {', '.join(GRAPH_OPTIMIZATION)}")
         options.graph_optimization_level = getattr(ort.GraphOptimizationLevel, f"ORT_ENABLE_{level.upper()}")
+        return options
+
+    def _session(self) -> Any:
+        try:
+            import onnxruntime as ort
+        except ImportError:
+            raise ModelError("onnxruntime is not installed: pip install 'tactile-learn[runtime]'") from None
+        options = self._session_options()
+        card = self.card_
         try:
             session = ort.InferenceSession(str(self.path), sess_options=options, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own untyped errors for corrupt graphs
@@ -215,12 +230,29 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{self.path}: the graph's input shape {inputs[0].shape} does not match the card's")
         return session
 
+    def _first_output_session(self) -> Any:
+        """A session of the checked graph (:meth:`_session`) cut down to its first output
+        (:func:`~tactile_learn.onnx_prune.first_output_graph`), or the whole graph's session."""
+        from tactile_learn.onnx_prune import first_output_graph
+
+        pruned = first_output_graph(self.path)
+        if pruned is None:
+            return self.session_
+        import onnxruntime as ort
+
+        return ort.InferenceSession(pruned, sess_options=self._session_options(), providers=["CPUExecutionProvider"])
+
     def predict(self, X: np.ndarray) -> np.ndarray:
-        """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`)."""
-        self.prepared_state("run_")  # a model not prepared fails before the input is looked at
-        one = self.frame_check_
-        if one is not None and one.plain_verdict(X):  # a plain valid frame: the full check would pass it as it is
-            return self.predict_checked(X)
+        """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`).
+
+        A float32 batch of one frame takes the one-frame path (:mod:`tactile_learn.onnx_one_frame`:
+        the same result, without the per-call set-up); anything else, and any frame it does not
+        pass as plainly valid, the full check (its clear error for bad input)."""
+        one = self.prepared_state("one_frame_")  # a model not prepared fails before the input is looked at
+        if one is not None:
+            out = one(X)
+            if out is not None:
+                return out.argmax(axis=1).astype(np.int64) if self.is_classifier else out
         return self.predict_checked(self._checked(X))
 
     def predict_checked(self, x: np.ndarray) -> np.ndarray:
@@ -229,7 +261,11 @@ class OnnxEstimator(Estimator):
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """A classifier's probabilities over the task's output labels (B, K + 1)."""
-        self.prepared_state("run_")
+        one = self.prepared_state("one_frame_")
+        if one is not None:
+            out = one(X)
+            if out is not None:
+                return out
         return self.predict_proba_checked(self._checked(X))
 
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
@@ -243,36 +279,50 @@ class OnnxEstimator(Estimator):
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray] | None:
         """A function of one validated frame ``(1, *shape)`` giving what :meth:`predict_proba_checked`
-        gives, through an io binding with buffers of its own: the frame is copied into a bound input,
-        the graph writes into a bound output, no per-call dict, output list or allocation inside
-        onnxruntime. The buffers make it a function for one caller at a time:
+        gives, through buffers bound to the session that belong to the caller
+        (:class:`~tactile_learn.onnx_one_frame.OneFrameRun`): for one caller at a time:
         :class:`~tactile_learn.frame_stream.FrameStream` builds one per stream. ``None`` where the
         graph's first output has no fixed frame shape or is not float32 (then the stream calls
         :meth:`predict_proba_checked`)."""
-        _, output, input_name = self.prepared_state("run_")
-        session = self.session_
+        self.prepared_state("run_")
+        run = self._one_frame_run(bounds=(0.0, float("inf"), False))  # its check is not used here
+        return None if run is None else run.run_checked
+
+    def one_frame_run(self) -> OneFrameRun | None:
+        """The batch-1 path of :meth:`predict_proba_checked` with its own check and buffers
+        (:class:`~tactile_learn.onnx_one_frame.OneFrameRun`; :meth:`predict` has one, a
+        :class:`~tactile_learn.frame_stream.FrameStream` builds another): ``run(frames)`` gives the
+        graph's finished first output for a plain valid float32 batch of one frame, ``None`` for
+        anything else. ``None`` where it does not apply (a calibrated film, whose readings are
+        mapped; a graph whose first output is not float32 or has no fixed frame shape)."""
+        self.prepared_state("run_")
+        return self._one_frame_run()
+
+    def _one_frame_run(self, bounds: tuple[float, float, bool] | None = None) -> OneFrameRun | None:
+        """:meth:`one_frame_run`, checking frames against ``bounds`` (default: the task's)."""
+        from tactile_learn.onnx_one_frame import OneFrameRun
+
+        session = self.first_output_session_
+        bounds = self.task_.fast_bounds(self.scene_) if bounds is None else bounds
         shape = self.card_["outputs"][0]["shape"][1:]
-        graph_input = session.get_inputs()[0]
-        if session.get_outputs()[0].type != "tensor(float)" or graph_input.type != "tensor(float)":
+        if bounds is None or not all(isinstance(d, int) and d > 0 for d in shape):
             return None
-        if not all(isinstance(d, int) and d > 0 for d in shape):
+        if session.get_outputs()[0].type != "tensor(float)" or session.get_inputs()[0].type != "tensor(float)":
             return None
-        import onnxruntime as ort
+        # the task's finishing from the buffers where it has one (FSR: the one-press check on
+        # Python floats), else the batch finisher on a copy of the output buffer
+        one_frame_finisher = getattr(self.task_, "one_frame_finisher", None)
+        finisher = one_frame_finisher(self.scene_) if one_frame_finisher is not None else None
+        if finisher is None:
+            finish = self.finish_
 
-        frame = np.zeros((1, *self.input_shape(self.scene_)), dtype=np.float32)
-        result = np.zeros((1, *shape), dtype=np.float32)
-        binding = session.io_binding()
-        binding.bind_ortvalue_input(input_name, ort.OrtValue.ortvalue_from_numpy(frame))
-        binding.bind_ortvalue_output(output[0], ort.OrtValue.ortvalue_from_numpy(result))
-        run_bound = session.run_with_iobinding
-        finish = self.finish_
+            def finisher(frame: np.ndarray, result: np.ndarray) -> np.ndarray:
+                return finish(frame, result.copy())  # the buffer is overwritten by the next frame
 
-        def run_frame(x: np.ndarray) -> np.ndarray:
-            frame[...] = x
-            run_bound(binding)
-            return finish(x, result.copy())  # the buffer is overwritten by the next frame
-
-        return run_frame
+        _, output, input_name = self.run_
+        return OneFrameRun(
+            session, input_name, output[0], tuple(self.input_shape(self.scene_)), tuple(shape), bounds, finisher
+        )
 
     def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every output of the graph by name (the first is what :meth:`predict_proba_checked` returns)."""

@@ -1,6 +1,6 @@
-"""OnnxEstimator.predict checks one small frame on Python floats (the stream's one-frame check):
-the same results as the full check, the same clear errors for bad frames, and no fast check where
-the scene's check maps readings (a calibrated film) or frames are large."""
+"""OnnxEstimator.predict checks one frame on its one-frame path (tactile_learn.onnx_one_frame):
+the same results as the full check, the same clear errors for bad frames, and no fast path where
+the scene's check maps readings (a calibrated film)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ def fsr_model() -> OnnxEstimator:
 
 
 def test_single_frames_equal_the_fully_checked_path(fsr_model: OnnxEstimator) -> None:
-    assert fsr_model.frame_check_ is not None
+    assert fsr_model.one_frame_ is not None
     scene = fsr_model.card_scene_
     frames = np.ascontiguousarray(fsr.make_simulator(scene).simulate(200, np.random.default_rng(41))["readings"])
     frames = frames.astype(np.float32)
@@ -48,12 +48,14 @@ def test_no_fast_check_where_the_check_maps_readings(fsr_model: OnnxEstimator) -
     film = dataclasses.replace(card_scene.sensor.film, gains=(1.05, 0.95, 1.02, 0.97, 1.04, 0.96), gain_spread=0.0)
     scene = dataclasses.replace(card_scene, sensor=dataclasses.replace(card_scene.sensor, film=film))
     calibrated = OnnxEstimator(fsr_model.path, threads=1, scene=scene).prepare()
-    assert calibrated.frame_check_ is None
+    assert calibrated.one_frame_ is None
     frame = np.array([[300.0, 280.0, 120.0, 40.0, 20.0, 0.0]], dtype=np.float32)
     # the calibrated film's readings are mapped to the nominal film's before the network
     assert not np.array_equal(calibrated.predict(frame), fsr_model.predict(frame))
 
 
-def test_large_frames_keep_the_full_check() -> None:
+def test_strip_frames_take_the_one_frame_path_too() -> None:
     strips = OnnxEstimator(shipped_models("strips")["strips16"], threads=1).prepare()
-    assert strips.frame_check_ is None
+    assert strips.one_frame_ is not None  # 32 readings: one reduction over their bit patterns
+    frame = np.full((1, 32), 0.2, dtype=np.float32)
+    np.testing.assert_array_equal(strips.predict(frame), strips.predict_checked(strips.input_check_(frame)))

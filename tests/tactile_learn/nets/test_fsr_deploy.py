@@ -1,5 +1,6 @@
 """The FSR network's export graph (tactile_learn.nets.fsr_deploy): LeanFsrNet computes FsrNet's
-function (normalisation folded into the weights) on trained and random weights, and exports to the
+function (features, normalisation and output scalings folded into the weights) on trained and random
+weights, keeps its outputs in range for wild weights, and exports to the
 smaller ONNX graph with the same outputs."""
 
 from __future__ import annotations
@@ -78,7 +79,7 @@ def test_export_module_is_the_lean_net_and_exports_fewer_nodes(tmp_path) -> None
         paths[label] = tmp_path / f"{label}.onnx"
         to_onnx(module, torch.from_numpy(x[:2]), paths[label], "readings", "estimate", {"task": "fsr"})
     nodes = {k: len(onnx.load(str(p)).graph.node) for k, p in paths.items()}
-    assert nodes["lean"] <= nodes["full"] - 10
+    assert nodes["lean"] <= nodes["full"] - 15  # 21 of 36
     outs = {k: ort.InferenceSession(str(p)).run(None, {"readings": x})[0] for k, p in paths.items()}
     _close(torch.from_numpy(outs["lean"]), torch.from_numpy(outs["full"]))
 
@@ -88,3 +89,22 @@ def test_lean_net_refuses_another_mlp() -> None:
     net.mlp = torch.nn.Sequential(torch.nn.Linear(6, 5))
     with pytest.raises(ValueError, match="MLP"):
         LeanFsrNet(net)
+
+
+def test_wild_outputs_stay_finite_and_probabilities_in_range() -> None:
+    net = _random_net(5)
+    with torch.no_grad():  # logits and log forces far beyond the exponent's clamp, both signs
+        net.mlp[-1].weight.mul_(400.0)
+        net.mlp[-1].bias.mul_(400.0)
+    x = torch.from_numpy(_readings(2000, 6))
+    with torch.inference_mode():
+        lean, raw = LeanFsrNet(net).eval()(x), net.raw(x)
+    assert torch.isfinite(lean).all()
+    assert ((lean[:, 3:] >= 0) & (lean[:, 3:] <= 1)).all()
+    log_force, logits = raw[:, 2], raw[:, 3:]
+    assert all(m.any() for m in (log_force > 61, log_force < -31, logits > 61, logits < -61))  # clamps reached
+    # the same clamp of log F to [-30, 60] as the network's
+    np.testing.assert_allclose(lean[log_force > 61, 2].numpy(), np.exp(np.float32(60.0)), rtol=1e-6)
+    np.testing.assert_allclose(lean[log_force < -31, 2].numpy(), np.exp(np.float32(-30.0)), rtol=1e-6)
+    assert (lean[:, 3:][logits > 61] == 1.0).all()
+    assert (lean[:, 3:][logits < -61] < 1e-13).all()
