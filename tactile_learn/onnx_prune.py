@@ -7,7 +7,8 @@ four of them MatMuls), which ``predict`` never reads: ~20 us of its ~67 at batch
 README). :func:`first_output_graph` keeps the nodes the first output depends on, the initializers
 they read and the graph's metadata; the kept nodes compute what they compute in the whole graph
 (tests: bit-identical). It needs the ``onnx`` package (in the runtime extra: ~20 us of
-strips16_small's batch 1 is worth the model format's own reader); where it is not installed, or the graph holds subgraphs (whose outer-scope reads this module does not follow),
+strips16_small's batch 1 is worth the model format's own reader); where it is not installed, or
+the graph holds subgraphs (whose outer-scope reads this module does not follow),
 ``predict`` runs the whole graph as before.
 """
 
