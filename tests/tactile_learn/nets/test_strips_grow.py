@@ -1,4 +1,4 @@
-"""scripts/strips_grow.py: a deeper general strip network started from a trained one."""
+"""scripts/strips_grow.py: a deeper or wider general strip network started from a trained one."""
 
 from __future__ import annotations
 
@@ -37,6 +37,35 @@ def test_the_grown_network_computes_what_the_trained_one_does_and_can_learn(tmp_
     added = grown.blocks[-1]
     assert float(added.own.weight.grad.abs().sum()) > 0.0
     assert float(added.along_rows.weight.grad.abs().sum()) > 0.0
+
+
+def test_the_widened_network_computes_what_the_trained_one_does_and_exports(tmp_path: Path) -> None:
+    out = tmp_path / "wide.pt"
+    assert strips_grow.main(["models/strips16.pt", "--size", "wide", "--out", str(out)]) == 0
+    scene = load_scene("strips16")
+    widened = build_net(load_weights(out), scene)  # strict load: 24 crossing channels
+    source = build_net(load_weights("models/strips16.pt"), scene)
+    assert widened.head.weight.shape[1] == 24 and source.head.weight.shape[1] == 16
+    readings = torch.from_numpy(simulate_shard(scene, 4, 0, 32)["readings"])
+    with torch.inference_mode():
+        np.testing.assert_allclose(widened(readings).numpy(), source(readings).numpy(), rtol=1e-5, atol=1e-4)
+    # the added channels carry features (fresh weights into them), so the weights reading them learn
+    widened.train()
+    widened(readings).pow(2).mean().backward()
+    assert float(widened.head.weight.grad[:, 16:].abs().sum()) > 0.0
+    assert float(widened.blocks[-1].own.weight.grad[:16, 16:].abs().sum()) > 0.0
+    # the exported form of the wider network is checked against it (deploy refuses a difference)
+    from tactile_learn.nets.strips_deploy import deploy
+
+    deploy(widened.eval(), scene, readings)
+
+
+def test_a_narrower_target_is_refused() -> None:
+    state = load_weights("models/strips16.pt")["state_dict"]
+    narrow = {name: value[:8] if name == "head.weight" else value for name, value in state.items()}
+    narrow["head.weight"] = state["head.weight"][:, :8]
+    with pytest.raises(ConfigError, match="fewer than the source"):
+        strips_grow.widen(state, narrow)
 
 
 def test_only_the_number_of_blocks_may_grow(tmp_path: Path) -> None:
