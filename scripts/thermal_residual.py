@@ -3,12 +3,15 @@
     python scripts/thermal_residual.py --label R_1 --json results/thermal_robot_residual.json
 
 For the labelled session: ``calibrate`` once per variant (per-touch nuisance terms: none; the
-object's flux; the object's flux and the heater's steps; the contact's precursor; and the joint
-refinement in noise units, ``weighted``), and the residual in mK and in noise sigma
-(both noise definitions: see ``tactile_learn.calibration.thermal_calibration._residual_summary``),
-with one contact for every touch and with each touch's own contact, overall, per channel and per
-condition of ``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time.
-The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot``.
+object's flux; the object's flux and the heater's steps; the contact's precursor; the approach
+through the closing air gap; and the joint refinement in noise units, ``weighted``), and the
+residual in mK and in noise sigma (both noise definitions: see
+``tactile_learn.calibration.thermal_calibration._residual_summary``), with one contact for every
+touch and with each touch's own contact, overall, per channel and per condition of
+``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time. The
+residual's kinks (slope changes at a few instants; see ``tactile_learn.calibration.thermal_kinks``)
+are printed per channel. The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
+``../shared/data/thermal-robot``.
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "contact_precursor": (("contact_precursor",), False),
     "weighted": ((), True),
     "contact_precursor+weighted": (("contact_precursor",), True),
+    "approach": (("approach",), False),
+    "approach+weighted": (("approach",), True),
 }
 
 
@@ -92,6 +97,15 @@ def main(argv: list[str] | None = None) -> int:
                 f"{res['shared_contact']['passive']['rms_k'] * 1e3:.2f} mK",
                 flush=True,
             )
+            for ch in report["channels_fitted"]:
+                k = res["kinks"][ch]
+                print(
+                    f"  {ch} kinks: {k['kinks']}; RMS {k['rms_k'] * 1e3:.2f} mK, away from them "
+                    f"{k['rms_away_from_kinks_k'] * 1e3:.2f}; after {res['kinks']['after_onset_s']} s about a line "
+                    f"{k['late_rms_about_a_line_k'] * 1e3:.2f}, with a hinge at each kink "
+                    f"{k['late_rms_about_a_line_and_hinges_k'] * 1e3:.2f} mK",
+                    flush=True,
+                )
     if args.json:
         atomic_write_json(args.json, out)
     return 0
