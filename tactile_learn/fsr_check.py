@@ -26,6 +26,7 @@ default threshold was set on normal single presses of unseen films (1 % of them 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cached_property
 
 import numpy as np
@@ -80,6 +81,18 @@ def one_press_check(
             _CHECKS.clear()
         check = _CHECKS[key] = OnePressCheck(scene, threshold, steps, floor_us)
     return check
+
+
+def _log_force(points: np.ndarray) -> np.ndarray:
+    """log of the force column (N) of float32 points (B, >= 3), clipped at 1 mN (a no-force
+    estimate still starts somewhere), in float64 (the log is taken in float32, as the
+    single-frame path does)."""
+    return np.log(np.clip(points[:, 2], 1e-3, None)).astype(np.float64)
+
+
+def _start(points: np.ndarray) -> np.ndarray:
+    """Float32 points (B, >= 3) (x, y, force) as the refinement's parameters (B, 3): x, y, log force."""
+    return np.column_stack([points[:, 0], points[:, 1], _log_force(points)]).astype(np.float64)
 
 
 _FD_STEP = np.array([0.05, 0.05, 0.01])  # finite-difference steps: mm, mm, log N
@@ -186,7 +199,7 @@ class OnePressCheck:
         (a second start: an estimate in the wrong triangle must not pass for a misfit)."""
         config, _, readout, _ = self._model
         measured = readout.conductance_us(np.asarray(readings, dtype=np.float64))
-        log_force = np.log(np.clip(estimate[:, 2], 1e-3, None)).astype(np.float64)
+        log_force = _log_force(estimate)
         weights = np.maximum(measured - config.element.leak_conductance_us, 0.0) + 1e-12
         centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
         starts = [np.column_stack([estimate[:, 0], estimate[:, 1], log_force]), np.column_stack([centroid, log_force])]
@@ -243,13 +256,27 @@ class OnePressCheck:
                     live = live[misfit[partner[live]] > stop_below]
         return self._misfit(measured, base)
 
-    def p_one_press(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
+    def p_one_press(
+        self,
+        readings: np.ndarray,
+        estimate: np.ndarray,
+        screen: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> np.ndarray:
         """1 where a detected contact is explained by one round press, else 0 (B,); a frame without
         a detected contact has 0, like every other column of a no-contact estimate.
 
         Cheapest first (refining only lowers the misfit, so a frame that passes a stage is done):
         the estimate as it is, then refined from the estimate, then refined from the centroid. A
-        good estimator's genuine presses mostly pass at the first stage: one forward model."""
+        good estimator's genuine presses mostly pass at the first stage: one forward model.
+
+        ``screen``: for an estimator whose own estimate is a poor start (the half-space kernel's
+        triangulation: none of its estimates passes as it is), a function giving a better point
+        ``(n, 3)`` (x, y, force; float32) for the frames (row indices of ``readings``) it is handed,
+        tried as it is. A frame passes if any stage does, so where the screen comes changes only the
+        cost: on a few frames (and on a single frame, :mod:`tactile_learn.fsr_one_frame`) before
+        the refinements it may spare; on many after the refinement from the estimate, where
+        refining many frames at once costs less than the screen's second closed form for all.
+        """
         out = np.zeros(len(estimate), dtype=np.float32)
         detected = estimate[:, 3] > 0.5
         if not detected.any():  # nothing to check (a stream's frames without contact)
@@ -262,15 +289,16 @@ class OnePressCheck:
             return out
         config, _, readout, _ = self._model
         measured = readout.conductance_us(np.asarray(readings, dtype=np.float64)[contact])
-        est = estimate[contact]
-        log_force = np.log(np.clip(est[:, 2], 1e-3, None)).astype(np.float64)
-        start = np.column_stack([est[:, 0], est[:, 1], log_force]).astype(np.float64)
-        passed = self._misfit(measured, self.conductance(start)) <= self.threshold
+        start = _start(estimate[contact])
+        passed = self._passes_as_it_is(measured, start)
         doubt = np.flatnonzero(~passed)
+        if screen is not None and 0 < doubt.size <= JOINT_STARTS_MAX:  # few frames: the screen first
+            passed[doubt] = self._passes_as_it_is(measured[doubt], _start(screen(contact[doubt])))
+            doubt = np.flatnonzero(~passed)
         if doubt.size:
             weights = np.maximum(measured[doubt] - config.element.leak_conductance_us, 0.0) + 1e-12
             centroid = (weights @ self._path[1]) / weights.sum(axis=1, keepdims=True)
-            second = np.column_stack([centroid, log_force[doubt]])
+            second = np.column_stack([centroid, start[doubt, 2]])
             if doubt.size <= JOINT_STARTS_MAX:  # few frames (a stream): both starts in one pass
                 n = doubt.size  # row i and row i + n: the two starts of one frame
                 both = self._refined_misfit(
@@ -282,12 +310,20 @@ class OnePressCheck:
                 passed[doubt] = (both <= self.threshold).reshape(2, -1).any(axis=0)
             else:
                 passed[doubt] = self._refined_misfit(measured[doubt], start[doubt], self.threshold) <= self.threshold
-                still = ~passed[doubt]
-                if still.any():
+                still = np.flatnonzero(~passed[doubt])
+                if screen is not None and still.size:  # many frames: the screen after this refinement
+                    rows = doubt[still]
+                    passed[rows] = self._passes_as_it_is(measured[rows], _start(screen(contact[rows])))
+                    still = still[~passed[rows]]
+                if still.size:
                     refined = self._refined_misfit(measured[doubt[still]], second[still], self.threshold)
                     passed[doubt[still]] = refined <= self.threshold
         out[contact] = passed.astype(np.float32)
         return out
+
+    def _passes_as_it_is(self, measured: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """Whether the press ``params`` (B, 3) explains ``measured`` (B, 6) within the threshold."""
+        return np.asarray(self._misfit(measured, self.conductance(params)) <= self.threshold)
 
     def _misfit(self, measured: np.ndarray, model: np.ndarray) -> np.ndarray:
         return np.asarray(

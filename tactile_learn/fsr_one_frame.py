@@ -28,6 +28,12 @@ _STEP_LIMIT = (5.0, 5.0, 1.0)  # as fsr_check._STEP_LO/_STEP_HI: a step's larges
 _FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force at 1e-3 (N)
 
 
+def _log_force(force: float) -> float:
+    """log of a float32 force (N) clipped at 1 mN, taken in float32 (as the batch path's
+    ``_log_force``)."""
+    return float(np.log(np.float32(max(force, _FORCE_FLOOR))))
+
+
 def expit(z: float) -> float:
     """The logistic function as scipy computes it, ``1 / (1 + exp(-z))``; where ``exp(-z)``
     overflows (``math.exp`` raises, numpy gives inf) the result is 0, as numpy's."""
@@ -93,24 +99,34 @@ class OneFrameCheck:
 
     # ---- the forward model ----------------------------------------------------------------------
 
-    def conductance(self, x: float, y: float, log_force: float) -> list[float]:
-        """Modelled conductances (uS) of the six sensors for a press at ``x, y`` with ``log_force``
-        (:meth:`OnePressCheck.conductance`; the same operations in the same order, written out
-        with local names: this is the check's inner loop)."""
-        exp, tanh = math.exp, math.tanh
-        force = exp(-10.0 if log_force < -10.0 else 6.0 if log_force > 6.0 else log_force)  # as the batch clip
+    def column(self, log_force: float) -> tuple[float, float, int, float]:
+        """What a press's force sets for all six sensors: the force (N), the Hertz radius (mm) and
+        the load table's column position (index and fraction) of that radius."""
+        force = math.exp(-10.0 if log_force < -10.0 else 6.0 if log_force > 6.0 else log_force)  # as the batch clip
         radius = (3.0 * force * self.tip / (4.0 * self.e_star)) ** (1.0 / 3.0)  # fsr.hertz_radius_mm
         ai = (radius - self.a0) / self.da
         ai = 0.0 if ai < 0.0 else self.a_top if ai > self.a_top else ai
         j0 = int(ai)
-        fj = ai - j0
+        return force, radius, j0, ai - j0
+
+    def conductance(self, x: float, y: float, log_force: float) -> list[float]:
+        """Modelled conductances (uS) of the six sensors for a press at ``x, y`` with ``log_force``
+        (:meth:`OnePressCheck.conductance`; the same operations in the same order)."""
+        return self.conductance_at(x, y, self.column(log_force))
+
+    def conductance_at(self, x: float, y: float, column: tuple[float, float, int, float]) -> list[float]:
+        """:meth:`conductance` with the force's part (:meth:`column`) worked out already (the
+        finite differences in ``x`` and ``y`` share it). Written out with local names: this is
+        the check's inner loop."""
+        exp, tanh, sqrt = math.exp, math.tanh, math.sqrt
+        force, radius, j0, fj = column
         j1, gj = j0 + 1, 1 - fj
         table, d0, dd, d_top, d_max = self.table, self.d0, self.dd, self.d_top, self.d_max
         leak, per_n, brk, width, sat = self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
         out = []
         for px, py in self.positions:
             dx, dy = x - px, y - py
-            d = math.sqrt(dx * dx + dy * dy)
+            d = sqrt(dx * dx + dy * dy)
             if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
             else:
@@ -162,51 +178,63 @@ class OneFrameCheck:
         self, measured: list[float], params: list[float], stop_below: float, base: list[float] | None = None
     ) -> float:
         """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
-        when the caller has it)."""
-        conductance, n, scale_m = self.conductance, len(measured), self._scale(measured)
+        when the caller has it).
+
+        A step's finite differences in ``x`` and ``y`` share the force's part of the model
+        (:meth:`column`), and the normal equations are summed in one pass over the sensors, in
+        the order the batch path's sums take (the same numbers as three :meth:`conductance` calls
+        and six sums: the tests compare them)."""
+        n, scale_m = len(measured), self._scale(measured)
+        conductance_at, column_of = self.conductance_at, self.column
+        x, y, f = params
+        column = column_of(f)
         if base is None:
-            base = conductance(*params)
+            base = conductance_at(x, y, column)
         cost = self._cost(measured, base)
         damping = 1e-3
+        hx, hy, hf = _FD_STEP
+        lx, ly, lf = _STEP_LIMIT
         for _ in range(self.steps):
             if math.sqrt(cost / n) / scale_m <= stop_below:
                 break
             # Jacobian columns: d conductance / d parameter, by forward differences
-            x, y, f = params
-            j0 = [(s - b) / _FD_STEP[0] for s, b in zip(conductance(x + _FD_STEP[0], y, f), base, strict=True)]
-            j1 = [(s - b) / _FD_STEP[1] for s, b in zip(conductance(x, y + _FD_STEP[1], f), base, strict=True)]
-            j2 = [(s - b) / _FD_STEP[2] for s, b in zip(conductance(x, y, f + _FD_STEP[2]), base, strict=True)]
-            resid = list(map(sub, measured, base))
-            a00, a11, a22 = sum(map(mul, j0, j0)), sum(map(mul, j1, j1)), sum(map(mul, j2, j2))
-            a01, a02, a12 = sum(map(mul, j0, j1)), sum(map(mul, j0, j2)), sum(map(mul, j1, j2))
+            at_x = conductance_at(x + hx, y, column)
+            at_y = conductance_at(x, y + hy, column)
+            at_f = conductance_at(x, y, column_of(f + hf))
+            a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
+            for m, b, sx, sy, sf in zip(measured, base, at_x, at_y, at_f, strict=True):
+                jx, jy, jf, resid = (sx - b) / hx, (sy - b) / hy, (sf - b) / hf, m - b
+                a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
+                a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
+                r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
             ridge = damping * (a00 + a11 + a22 + 1e-12)
-            delta = _solve_spd3(
-                a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge,
-                sum(map(mul, j0, resid)), sum(map(mul, j1, resid)), sum(map(mul, j2, resid)),
-            )  # fmt: skip
-            candidate = [
-                p + (-lim if s < -lim else lim if s > lim else s)
-                for p, s, lim in zip(params, delta, _STEP_LIMIT, strict=True)
-            ]
-            trial = conductance(*candidate)
+            sx, sy, sf = _solve_spd3(a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge, r0, r1, r2)
+            cx = x + (-lx if sx < -lx else lx if sx > lx else sx)
+            cy = y + (-ly if sy < -ly else ly if sy > ly else sy)
+            cf = f + (-lf if sf < -lf else lf if sf > lf else sf)
+            trial_column = column_of(cf)
+            trial = conductance_at(cx, cy, trial_column)
             trial_cost = self._cost(measured, trial)
             if trial_cost < cost:
-                params, base, cost, damping = candidate, trial, trial_cost, damping / 3.0
+                x, y, f, column, base, cost, damping = cx, cy, cf, trial_column, trial, trial_cost, damping / 3.0
             else:
                 damping *= 5.0
         return math.sqrt(cost / n) / scale_m
 
-    def p_one_press(self, codes: list[float], estimate: list[float]) -> float:
+    def p_one_press(self, codes: list[float], estimate: list[float], screen: list[float] | None = None) -> float:
         """The flag of one frame (:meth:`OnePressCheck.p_one_press`): ``codes`` its six nominal-film
-        readings, ``estimate`` its first five columns (cheapest first, as the batch path)."""
+        readings, ``estimate`` its first five columns (cheapest first, as the batch path);
+        ``screen``: a better point (x, y, force; float32 values) tried as it is first."""
         if not estimate[3] > 0.5:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
         measured = self.measured(codes)
-        # in float32, as the batch path takes the log of the float32 estimate
-        log_force = float(np.log(np.float32(max(estimate[2], _FORCE_FLOOR))))
-        start = [float(estimate[0]), float(estimate[1]), log_force]
+        if screen is not None:  # the screen's point first, as the batch path
+            at_screen = self.conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
+            if self.misfit(measured, at_screen) <= self.threshold:
+                return 1.0
+        start = [float(estimate[0]), float(estimate[1]), _log_force(estimate[2])]
         base = self.conductance(*start)
         if self.misfit(measured, base) <= self.threshold:
             return 1.0
@@ -216,4 +244,4 @@ class OneFrameCheck:
         total = sum(weights)
         cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
         cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
-        return 1.0 if self.refined_misfit(measured, [cx, cy, log_force], self.threshold) <= self.threshold else 0.0
+        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], self.threshold) <= self.threshold else 0.0

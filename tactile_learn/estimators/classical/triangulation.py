@@ -195,6 +195,22 @@ class TriangleGeometry:
         return np.concatenate([1.0 - l12.sum(-1, keepdims=True), l12], axis=-1)
 
 
+_ONE_FRAME, _FLOAT32 = (1, fsr.N_SENSORS), np.dtype(np.float32)  # a single frame that takes the fast path
+_SCREEN_MODELS: dict[tuple[str, float], LoadModel] = {}
+
+
+def _screen_model(scene: Scene, min_load_n: float) -> LoadModel:
+    """The fitted kernel's calibrated load model of ``scene``'s film (as ``triangulation_fit``'s),
+    built once per scene and valid load (the fit takes ~0.5 s)."""
+    key = (scene.digest, float(min_load_n))
+    model = _SCREEN_MODELS.get(key)
+    if model is None:
+        if len(_SCREEN_MODELS) >= 16:  # a long session over many calibrated films: keep the cache small
+            _SCREEN_MODELS.clear()
+        model = _SCREEN_MODELS[key] = calibrate_force(scene.sensor, fit_load_model(scene.sensor, "fitted"), min_load_n)
+    return model
+
+
 @functools.lru_cache(maxsize=8)
 def _geometry(layout: fsr.LayoutConfig) -> TriangleGeometry:
     return TriangleGeometry.from_positions(fsr.sensor_positions(layout))
@@ -393,11 +409,29 @@ class TriangulationEstimator(Estimator):
                 self.input_check_.bounds(),
             )
             self.frame_bounds_ = self.input_check_.bounds()
+            # the one-press check's screen (fsr_check.OnePressCheck.p_one_press): the half-space
+            # kernel's estimate is a poor start for the check (none of the latency set's presses
+            # passes as it is; each needs one or two refinement steps), the fitted kernel's
+            # solution of the same loads mostly passes as it is
+            self.screen_model_ = None if self.kernel == "fitted" else _screen_model(self.scene, self._threshold())
+            self.screen_one_frame_ = (
+                None
+                if self.screen_model_ is None
+                else OneFrameTriangulation(
+                    _geometry(self.scene.sensor.layout),
+                    self.screen_model_,
+                    self._threshold(),
+                    self.fallback_fraction,
+                    self.inside_tol_mm,
+                    self.one_frame_.loads_of_codes_array,
+                    self.simulator_.loads_from_readings,
+                )
+            )
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         one: OneFrameTriangulation = self.prepared_state("one_frame_")
-        if type(X) is np.ndarray and X.shape == (1, fsr.N_SENSORS) and X.dtype == np.float32:
+        if type(X) is np.ndarray and X.shape == _ONE_FRAME and X.dtype is _FLOAT32:
             # one frame (a stream): six whole codes the input check passes are keys of the
             # code -> load table (NaN, inf, codes out of range or between two codes are not)
             codes = X.tolist()[0]
@@ -420,13 +454,22 @@ class TriangulationEstimator(Estimator):
 
     def _predict_loads(self, one: OneFrameTriangulation, codes: list[float], loads: list[float]) -> np.ndarray:
         """:meth:`_predict_frame` from the frame's disc loads (looked up already)."""
-        estimate = one.estimate_loads(loads)
-        if not estimate[3]:  # no contact: every column 0
+        choice = one.choice(loads)
+        if choice is None:  # no contact: every column 0
             return np.zeros((1, 6), dtype=np.float32)
+        estimate = one.estimate_choice(choice)
         # the check reads the float32 estimate, as in the batch path (array "f": float32 rounding,
         # to nearest as numpy's cast; beyond float32's range inf, as numpy)
         rounded = array("f", estimate).tolist()
-        return np.array([[*rounded, self.check_.one_frame.p_one_press(codes, rounded)]], dtype=np.float32)
+        screen: OneFrameTriangulation | None = self.screen_one_frame_
+        if screen is None or not estimate[4] > 0.5:  # no screen, or a frame the check leaves alone
+            flag = self.check_.one_frame.p_one_press(codes, rounded)
+        else:  # the fitted kernel's solution: the same film, geometry and valid load share the choice
+            point = array("f", screen.estimate_choice(choice)).tolist()
+            flag = self.check_.one_frame.p_one_press(codes, rounded, point)
+        out = np.empty((1, 6), dtype=np.float32)
+        out[0] = [*rounded, flag]  # (float32 values already: exact)
+        return out
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
         """A function of one validated frame ``(1, 6)`` giving what :meth:`predict_checked` gives,
@@ -455,7 +498,15 @@ class TriangulationEstimator(Estimator):
         out, _ = triangulate(loads, config, model, self._threshold(), self.fallback_fraction, self.inside_tol_mm)
         result = np.empty((len(out), 6), dtype=np.float32)
         result[:, :5] = out
-        result[:, 5] = self.check_.p_one_press(readings, result[:, :5])  # reads the float32 estimate
+        screen = None
+        screen_model: LoadModel | None = self.screen_model_
+        if screen_model is not None:
+            options = (self._threshold(), self.fallback_fraction, self.inside_tol_mm)
+
+            def screen(rows: np.ndarray) -> np.ndarray:  # the fitted kernel's solution (float32)
+                return triangulate(loads[rows], config, screen_model, *options)[0][:, :3].astype(np.float32)
+
+        result[:, 5] = self.check_.p_one_press(readings, result[:, :5], screen)  # reads the float32 estimate
         return result
 
 

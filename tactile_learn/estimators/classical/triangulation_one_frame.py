@@ -26,7 +26,11 @@ import numpy as np
 if TYPE_CHECKING:  # the batch module imports this one
     from tactile_learn.estimators.classical.triangulation import LoadModel, TriangleGeometry
 
-__all__ = ["OneFrameTriangulation"]
+__all__ = ["Choice", "OneFrameTriangulation"]
+
+#: a frame's triangle choice (:meth:`OneFrameTriangulation.choice`): each triangle's three loads,
+#: each triangle's valid sensors, the most of them, the largest summed load
+Choice = tuple[list[tuple[float, float, float]], list[int], int, float]
 
 
 def _argmax(values: list[float] | tuple[float, ...]) -> int:
@@ -59,6 +63,7 @@ class OneFrameTriangulation:
         self.neg_inv_m = -1.0 / model.m
         self.h2 = model.h_mm**2
         self.on_axis = max(model.on_axis, 1e-300)
+        self.loads_of_codes_array = loads_of_codes
         self.loads_of_codes = loads_of_codes.tolist()
         self.loads_from_readings = loads_from_readings
         #: the disc load of every whole code that the input check passes as it is (``valid_codes``:
@@ -160,14 +165,18 @@ class OneFrameTriangulation:
         return self.estimate_loads(self.loads(codes))
 
     def estimate_loads(self, loads: list[float]) -> list[float]:
-        """:meth:`estimate` from the frame's six disc loads (N).
+        """:meth:`estimate` from the frame's six disc loads (N)."""
+        choice = self.choice(loads)
+        return [0.0, 0.0, 0.0, 0.0, 0.0] if choice is None else self.estimate_choice(choice)
 
-        Only the triangles with the most valid sensors are solved: the winner's score counts its
-        valid sensors in millions and everything else below 102,000, so no other triangle can win.
-        """
+    def choice(self, loads: list[float]) -> Choice | None:
+        """What the triangle choice reads besides the load model: every triangle's three loads and
+        valid sensors, the most valid sensors of any triangle and the largest summed load; none
+        for a frame without contact. (Another load model on the same film, geometry and valid load
+        shares it: :meth:`estimate_choice` of either.)"""
         min_load = self.min_load
         if not max(loads) >= min_load:  # no contact: all outputs 0
-            return [0.0, 0.0, 0.0, 0.0, 0.0]
+            return None
         picked = [pick(loads) for pick in self._pick]
         valid, most, top = [], 0, 1e-300  # every triangle's valid sensors; the largest summed load
         for f0, f1, f2 in picked:
@@ -176,6 +185,28 @@ class OneFrameTriangulation:
             most = n_valid if n_valid > most else most
             total = f0 + f1 + f2  # as _solve sums it
             top = total if total > top else top
+        return picked, valid, most, top
+
+    def estimate_choice(self, choice: Choice) -> list[float]:
+        """The five columns of a frame with contact from its :meth:`choice`.
+
+        Only the triangles with the most valid sensors are solved: the winner's score counts its
+        valid sensors in millions and everything else below 102,000, so no other triangle can win
+        (and where only one triangle has the most, it wins without a score).
+        """
+        picked, valid, most, top = choice
+        if valid.count(most) == 1:  # one candidate (most frames with contact)
+            t = valid.index(most)
+            best = self._solve(picked[t], self.triangles[t])
+        else:
+            best = self._best_scored(picked, valid, most, top)
+        x, y, force, n_valid, inside, _, _ = best
+        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+
+    def _best_scored(
+        self, picked: list[tuple[float, float, float]], valid: list[int], most: int, top: float
+    ) -> tuple[float, float, float, int, bool, float, float]:
+        """The best-scoring solution among the triangles with the most valid sensors."""
         best: tuple[float, float, float, int, bool, float, float] | None = None
         best_score = 0.0
         solve, triangles = self._solve, self.triangles
@@ -191,5 +222,4 @@ class OneFrameTriangulation:
             if best is None or score > best_score:
                 best, best_score = s, score
         assert best is not None  # the triangles with the most valid sensors: at least one
-        x, y, force, n_valid, inside, _, _ = best
-        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+        return best
