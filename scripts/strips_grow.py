@@ -1,10 +1,16 @@
-"""Start a deeper general strip network (architecture 2) from a trained one, for fine-tuning
-(``tactile-learn train --init``): the trained layers are copied, and each added mixing block starts
-at the identity (its weights and biases zero: ``relu(x + 0) = x`` on the non-negative features it
-reads), so the grown network computes exactly what the trained one does and training only adds.
+"""Start a deeper or wider general strip network (architecture 2) from a trained one, for
+fine-tuning (``tactile-learn train --init``). The grown network computes exactly what the trained
+one does, so training only adds:
+
+- an added mixing block starts at the identity (its weights and biases zero: ``relu(x + 0) = x``
+  on the non-negative features it reads);
+- added crossing channels (a wider size) start with fresh random weights *into* them and zero
+  weights *out of* them (no trained channel, and not the head, reads them yet): their features are
+  alive, so the loss has a gradient on the weights that will read them.
 
     python scripts/strips_grow.py models/strips16.pt --size deep --out runs/deep_init.pt
-    tactile-learn train --task strips --size deep --init runs/deep_init.pt ...
+    python scripts/strips_grow.py models/strips16.pt --size wide --out runs/wide_init.pt
+    tactile-learn train --task strips --size wide --init runs/wide_init.pt ...
 """
 
 from __future__ import annotations
@@ -15,10 +21,49 @@ import sys
 import torch
 
 from synth.errors import ConfigError
-from tactile_learn.nets.strips_general import SIZES
+from tactile_learn.checkpoints import weights_scene
+from tactile_learn.nets.strips_general import SIZES, GeneralStripNet
 from tactile_learn.train_resize import load_general_source, write_resized
 
-__all__ = ["grow", "main"]
+__all__ = ["grow", "main", "widen"]
+
+#: the layers writing crossing channels (output rows) and reading them (input columns)
+_WRITERS = ("crossings.row_proj.weight", "crossings.row_proj.bias", "crossings.col_proj.weight")
+_WRITERS += ("crossings.physics_proj.weight", "context.4.weight", "context.4.bias")
+
+
+def widen(state: dict[str, torch.Tensor], fresh: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """``state`` (a trained network) inside ``fresh`` (a freshly initialised wider one, same number
+    of blocks): trained weights in the first channels, fresh weights into the added channels, zero
+    weights from them into the trained channels and the head."""
+    out = {k: v.clone() for k, v in fresh.items()}
+    old, new = int(state["head.weight"].shape[1]), int(fresh["head.weight"].shape[1])
+    if new < old:
+        raise ConfigError(f"the target has {new} crossing channels, fewer than the source's {old}")
+    for name, value in state.items():
+        if name.startswith("blocks."):
+            continue
+        if name in _WRITERS:
+            out[name][:old] = value
+        elif name == "head.weight":
+            out[name].zero_()
+            out[name][:, :old] = value
+        else:
+            out[name] = value.clone()
+    blocks = {name.split(".")[1] for name in state if name.startswith("blocks.")}
+    for b in sorted(blocks):
+        key = f"blocks.{b}"
+        own = out[f"{key}.own.weight"]
+        own[:old, old:] = 0.0  # trained channels do not read the added ones
+        own[:old, :old] = state[f"{key}.own.weight"]
+        out[f"{key}.own.bias"][:old] = state[f"{key}.own.bias"]
+        for axis in ("along_rows", "along_cols"):
+            # inputs: [max over the axis (channels), mean over the axis (channels)]
+            weight, trained = out[f"{key}.{axis}.weight"], state[f"{key}.{axis}.weight"]
+            weight[:old] = 0.0
+            weight[:old, :old] = trained[:, :old]
+            weight[:old, new : new + old] = trained[:, old:]
+    return out
 
 
 def grow(state: dict[str, torch.Tensor], size: str, source_size: str) -> dict[str, torch.Tensor]:
@@ -39,11 +84,23 @@ def grow(state: dict[str, torch.Tensor], size: str, source_size: str) -> dict[st
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("source", help="a trained general network: run folder or a model's NAME.pt")
-    parser.add_argument("--size", required=True, help="the deeper size (strips_general.SIZES)")
+    parser.add_argument("--size", required=True, help="the deeper or wider size (strips_general.SIZES)")
     parser.add_argument("--out", required=True, help="weights file to write (for train --init)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the added channels' fresh weights")
     args = parser.parse_args(argv)
     saved = load_general_source(args.source, args.size)
-    state = grow(saved["state_dict"], args.size, str(saved["size"]))
+    spec, source = SIZES[args.size], SIZES[str(saved["size"])]
+    if spec[1] == source[1]:
+        state = grow(saved["state_dict"], args.size, str(saved["size"]))
+    else:
+        if spec[0] != source[0] or spec[2:] != source[2:]:
+            raise ConfigError(
+                f"--size {args.size}: only the number of mixing blocks or (alone) of crossing channels may "
+                f"differ from {saved['size']}"
+            )
+        torch.manual_seed(args.seed)
+        fresh = GeneralStripNet(weights_scene(saved), saved["stats"], args.size)
+        state = widen(saved["state_dict"], fresh.state_dict())
     write_resized(saved, args.size, state, args.out, "grown_from", args.source)
     return 0
 

@@ -329,6 +329,8 @@ def _build_model(run: _Run) -> None:
         # a fine-tuned network starts from its weights and keeps its normalisation (a mismatch is a
         # ModelError naming the file)
         start = TorchEstimator.from_checkpoint(config.init, scene)
+        if not config.size:  # no --size: the fine-tune keeps the network it starts from
+            run.size = str(start.checkpoint["size"])
         if start.checkpoint["size"] != run.size:
             raise ConfigError(
                 f"--init: {config.init} holds a {start.checkpoint['size']!r} network, not {run.size!r} (pass --size)"

@@ -1,4 +1,4 @@
-"""scripts/strips_grow.py: a deeper general strip network started from a trained one."""
+"""scripts/strips_grow.py: a deeper or wider general strip network started from a trained one."""
 
 from __future__ import annotations
 
@@ -15,18 +15,36 @@ import torch
 from synth.dataset import simulate_shard
 from synth.errors import ConfigError
 from synth.scene import load_scene
-from tactile_learn.checkpoints import build_net, load_weights
+from tactile_learn.checkpoints import build_net, load_weights, save_torch
+from tactile_learn.nets.strips_general import GeneralStripNet
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
 import strips_grow
 
 
+def _small_source(folder: Path) -> Path:
+    """A size-small general network with random weights (every layer, the head too, so that each
+    one shapes the map) and the shipped default's statistics, with its scene: the source to grow."""
+    shipped = load_weights("models/strips16.pt")
+    torch.manual_seed(7)
+    net = GeneralStripNet(load_scene("strips16"), shipped["stats"], "small")
+    with torch.no_grad():
+        net.head.weight.normal_(0.0, 0.1)
+    path = folder / "small.pt"
+    scene = load_scene("strips16").to_dict()
+    save_torch(
+        path,
+        {"task": "strips", "size": "small", "scene": scene, "stats": shipped["stats"], "state_dict": net.state_dict()},
+    )
+    return path
+
+
 def test_the_grown_network_computes_what_the_trained_one_does_and_can_learn(tmp_path: Path) -> None:
-    out = tmp_path / "deep.pt"
-    assert strips_grow.main(["models/strips16.pt", "--size", "deep", "--out", str(out)]) == 0
+    out, small = tmp_path / "deep.pt", _small_source(tmp_path)
+    assert strips_grow.main([str(small), "--size", "deep", "--out", str(out)]) == 0
     scene = load_scene("strips16")
     grown = build_net(load_weights(out), scene)  # strict load: three mixing blocks
-    source = build_net(load_weights("models/strips16.pt"), scene)
+    source = build_net(load_weights(small), scene)
     assert len(grown.blocks) == len(source.blocks) + 1
     readings = torch.from_numpy(simulate_shard(scene, 4, 0, 32)["readings"])
     with torch.inference_mode():
@@ -39,8 +57,38 @@ def test_the_grown_network_computes_what_the_trained_one_does_and_can_learn(tmp_
     assert float(added.along_rows.weight.grad.abs().sum()) > 0.0
 
 
+def test_the_widened_network_computes_what_the_trained_one_does_and_exports(tmp_path: Path) -> None:
+    out, small = tmp_path / "wide.pt", _small_source(tmp_path)
+    assert strips_grow.main([str(small), "--size", "wide", "--out", str(out)]) == 0
+    scene = load_scene("strips16")
+    widened = build_net(load_weights(out), scene)  # strict load: 24 crossing channels
+    source = build_net(load_weights(small), scene)
+    assert widened.head.weight.shape[1] == 24 and source.head.weight.shape[1] == 16
+    readings = torch.from_numpy(simulate_shard(scene, 4, 0, 32)["readings"])
+    with torch.inference_mode():
+        np.testing.assert_allclose(widened(readings).numpy(), source(readings).numpy(), rtol=1e-5, atol=1e-4)
+    # the added channels carry features (fresh weights into them), so the weights reading them learn
+    widened.train()
+    widened(readings).pow(2).mean().backward()
+    assert float(widened.head.weight.grad[:, 16:].abs().sum()) > 0.0
+    assert float(widened.blocks[-1].own.weight.grad[:16, 16:].abs().sum()) > 0.0
+    # the exported form of the wider network is checked against it (deploy refuses a difference)
+    from tactile_learn.nets.strips_deploy import deploy
+
+    deploy(widened.eval(), scene, readings)
+
+
+def test_a_narrower_target_is_refused() -> None:
+    state = load_weights("models/strips16.pt")["state_dict"]
+    narrow = dict(state)
+    narrow["head.weight"] = state["head.weight"][:, :8]
+    with pytest.raises(ConfigError, match="fewer than the source"):
+        strips_grow.widen(state, narrow)
+
+
 def test_only_the_number_of_blocks_may_grow(tmp_path: Path) -> None:
+    small = _small_source(tmp_path)
     with pytest.raises(ConfigError, match="only the number of mixing blocks"):
-        strips_grow.main(["models/strips16.pt", "--size", "large", "--out", str(tmp_path / "x.pt")])
+        strips_grow.main([str(small), "--size", "large", "--out", str(tmp_path / "x.pt")])
     with pytest.raises(ConfigError, match="fewer mixing blocks"):
-        strips_grow.grow(load_weights("models/strips16.pt")["state_dict"], "small", "deep")
+        strips_grow.grow(load_weights(small)["state_dict"], "small", "deep")

@@ -36,8 +36,9 @@ def test_the_shrunk_network_loads_as_the_smaller_size_and_keeps_the_used_channel
     state = {k: v.clone() for k, v in source["state_dict"].items()}
     for key in ("blocks.0.own.weight", "blocks.0.along_rows.weight", "blocks.0.along_cols.weight"):
         state[key][:, 3] = 0.0
-    state["blocks.0.along_rows.weight"][:, 16 + 3] = 0.0
-    state["blocks.0.along_cols.weight"][:, 16 + 3] = 0.0
+    hidden = int(state["head.weight"].shape[1])  # the pooled inputs: [max (hidden), mean (hidden)]
+    state["blocks.0.along_rows.weight"][:, hidden + 3] = 0.0
+    state["blocks.0.along_cols.weight"][:, hidden + 3] = 0.0
     shrunk = strips_shrink.shrink(state, "tiny", blocks_from=2)
     kept = shrunk["crossings.physics_proj.weight"]
     assert not any(torch.equal(kept[i], state["crossings.physics_proj.weight"][3]) for i in range(len(kept)))
