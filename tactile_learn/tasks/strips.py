@@ -125,7 +125,19 @@ class StripsTask(Task):
     output_key = "pressure"
     truth_keys = ("pressure",)
     primary_metric = ("pearson_r_mean", True)
-    net_sizes = ("small", "tiny", "large", "corrected", "small_law", "tiny_law", "large_law", "v1_small", "v1_large")
+    net_sizes = (
+        "small",
+        "tiny",
+        "large",
+        "corrected",
+        "wide",
+        "deep",
+        "small_law",
+        "tiny_law",
+        "large_law",
+        "v1_small",
+        "v1_large",
+    )
     default_epochs = 12  # 400k mixed frames: about an hour on one busy core
 
     def input_shape(self, scene: Scene) -> tuple[int, ...]:
