@@ -19,6 +19,20 @@ from synth.materials import get_material
 from synth.sensors.thermal.dynamics import ChannelModel
 
 
+def add_conduction_chain(matrix: np.ndarray, first_row: int, links: np.ndarray, cap: np.ndarray) -> None:
+    """Conduction between consecutive cells (rows ``first_row ..``; ``links[i]`` joins cell ``i``
+    to ``i + 1``, ``cap`` the cells' heat capacities) added to the rate matrix ``matrix``; the
+    ends' boundaries are the caller's."""
+    for i in range(len(cap)):
+        row = first_row + i
+        if i > 0:
+            matrix[row, row - 1] += links[i - 1] / cap[i]
+            matrix[row, row] -= links[i - 1] / cap[i]
+        if i < len(cap) - 1:
+            matrix[row, row + 1] += links[i] / cap[i]
+            matrix[row, row] -= links[i] / cap[i]
+
+
 def reference_channel(
     t: np.ndarray,
     *,
@@ -79,20 +93,11 @@ def reference_channel(
     b[0] = -g0 * v0 / heat_capacity
     # object cells (far end held at the object's temperature)
     cap = rho_c * volume
-    for i in range(cells):
-        row = 1 + i
-        if i == 0:
-            a_mat[row, 0] += g0 / cap[0]
-            a_mat[row, row] -= g0 / cap[0]
-            b[row] += g0 * v0 / cap[0]
-        if i > 0:
-            a_mat[row, row - 1] += links[i - 1] / cap[i]
-            a_mat[row, row] -= links[i - 1] / cap[i]
-        if i < cells - 1:
-            a_mat[row, row + 1] += links[i] / cap[i]
-            a_mat[row, row] -= links[i] / cap[i]
-        else:
-            a_mat[row, row] -= k_w_mk * area[cells] / (faces[cells] - centres[-1]) / cap[i]
+    a_mat[1, 0] += g0 / cap[0]
+    a_mat[1, 1] -= g0 / cap[0]
+    b[1] += g0 * v0 / cap[0]
+    add_conduction_chain(a_mat, 1, links, cap)
+    a_mat[cells, cells] -= k_w_mk * area[cells] / (faces[cells] - centres[-1]) / cap[-1]
     # lag chain: tau r_k' = r_{k-1} - r_k, r_0 = u
     prev = 0
     for j, tau in enumerate(lags):

@@ -12,6 +12,7 @@ from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal.approach import K_AIR_W_MK, approach_term, gap_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
+from tests.thermal_reference import add_conduction_chain
 
 
 def _finite_volume(
@@ -38,16 +39,8 @@ def _finite_volume(
     n = 1 + cells + len(lags)
     base = np.zeros((n, n))
     links = k_w_mk / np.diff(centres)
-    for i in range(cells):
-        row = 1 + i
-        if i > 0:
-            base[row, row - 1] += links[i - 1] / cap[i]
-            base[row, row] -= links[i - 1] / cap[i]
-        if i < cells - 1:
-            base[row, row + 1] += links[i] / cap[i]
-            base[row, row] -= links[i] / cap[i]
-        else:
-            base[row, row] -= k_w_mk / (faces[-1] - centres[-1]) / cap[i]
+    add_conduction_chain(base, 1, links, cap)
+    base[cells, cells] -= k_w_mk / (faces[-1] - centres[-1]) / cap[-1]
     base[0, 0] = -loss / heat_capacity
     prev = 0
     for j, tau in enumerate(lags):
