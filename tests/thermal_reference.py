@@ -33,6 +33,18 @@ def add_conduction_chain(matrix: np.ndarray, first_row: int, links: np.ndarray, 
             matrix[row, row] -= links[i] / cap[i]
 
 
+def add_lag_chain(matrix: np.ndarray, first_row: int, lags: tuple[float, ...] | list[float]) -> int:
+    """The thermistor's first-order lags ``tau r_k' = r_{k-1} - r_k`` (``r_0``: row 0, the body) in
+    rows ``first_row ..`` of the rate matrix; the row that holds the reading (0 without lags)."""
+    prev = 0
+    for j, tau in enumerate(lags):
+        row = first_row + j
+        matrix[row, prev] += 1.0 / tau
+        matrix[row, row] -= 1.0 / tau
+        prev = row
+    return prev
+
+
 def reference_channel(
     t: np.ndarray,
     *,
@@ -99,13 +111,7 @@ def reference_channel(
     add_conduction_chain(a_mat, 1, links, cap)
     a_mat[cells, cells] -= k_w_mk * area[cells] / (faces[cells] - centres[-1]) / cap[-1]
     # lag chain: tau r_k' = r_{k-1} - r_k, r_0 = u
-    prev = 0
-    for j, tau in enumerate(lags):
-        row = 1 + cells + j
-        a_mat[row, prev] += 1.0 / tau
-        a_mat[row, row] -= 1.0 / tau
-        prev = row
-    reading = prev
+    reading = add_lag_chain(a_mat, 1 + cells, lags)
     # controller dQ = -kp r - ki I, I' = r
     a_mat[0, reading] -= kp / heat_capacity
     if ki > 0:

@@ -12,7 +12,7 @@ from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal.approach import K_AIR_W_MK, approach_term, gap_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
-from tests.thermal_reference import add_conduction_chain
+from tests.thermal_reference import add_conduction_chain, add_lag_chain
 
 
 def _finite_volume(
@@ -42,12 +42,7 @@ def _finite_volume(
     add_conduction_chain(base, 1, links, cap)
     base[cells, cells] -= k_w_mk / (faces[-1] - centres[-1]) / cap[-1]
     base[0, 0] = -loss / heat_capacity
-    prev = 0
-    for j, tau in enumerate(lags):
-        row = 1 + cells + j
-        base[row, prev] += 1.0 / tau
-        base[row, row] -= 1.0 / tau
-        prev = row
+    prev = add_lag_chain(base, 1 + cells, lags)
     # the interface: flux g (1 + u - theta_1) out of the body into the first cell, g the gap's
     # conductance in series with half the first cell
     couple = np.zeros((n, n))
