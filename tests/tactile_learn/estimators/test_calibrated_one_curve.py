@@ -59,7 +59,7 @@ def test_factors_reproduce_every_design_basis(scene_name: str) -> None:
         coordinates = one.second[s][:, rank_of[m] + n_templates * np.arange(n_columns)]
         dense = q[:, g * n_columns : (g + 1) * n_columns]
         worst = max(worst, float(np.abs(factor @ coordinates - dense).max()))
-    assert worst <= n * np.finfo(np.float64).eps
+    assert worst <= 4 * n * np.finfo(np.float64).eps
     np.testing.assert_array_equal(one.first[:, n_starts * width :], q[:, -n_columns:])  # the lines' own basis
     # the point: fewer numbers to read per curve than the dense bases (the seed scene: a third)
     assert one.first.size + one.second.size < (0.4 if scene_name == "thermal" else 0.7) * q.size
@@ -134,3 +134,41 @@ def test_bad_single_curves_are_refused(kind: str, message: str) -> None:
     for call in (est.predict, est.predict_proba, FrameStream(est).predict):
         with pytest.raises(InputError, match=message):
             call(curve)
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [(100.0, "saturated reading at or above"), (0.0, "saturated reading at or below"), (-1.0, "negative")],
+)
+def test_curves_at_or_beyond_the_adc_range_are_refused(value: float, message: str) -> None:
+    """The single-curve path's check (the mean +- |y - mean| inside the range) lets no reading at
+    or beyond the ADC's ends through: the full check's error, from every entry point."""
+    scene = load_scene("thermal")
+    est = CalibratedFitEstimator(scene).prepare()
+    curve = held_out_curves(scene, 1, seed=65)[:1].copy()
+    curve[0, 40] = value
+    assert est.one_frame_run()(curve) is None
+    for call in (est.predict, est.predict_proba, FrameStream(est).predict):
+        with pytest.raises(InputError, match=message):
+            call(curve)
+
+
+def test_one_frame_run_scores_plain_curves_and_leaves_the_rest_to_the_full_check() -> None:
+    scene = load_scene("thermal")
+    est = CalibratedFitEstimator(scene).prepare()
+    run = est.one_frame_run()
+    lo, hi = scene.sensor.readout.adc_range_c
+    x = held_out_curves(scene, 2, seed=66)[:8]
+    for curve in x:
+        out = run(curve[None])
+        assert out is not None and out.dtype == np.float32 and out.shape == (1, len(scene.sensor.class_names) + 1)
+        np.testing.assert_array_equal(out, est.frame_runner()(curve[None]))
+    assert run(x[:2]) is None  # two curves: the batch path
+    assert run(x[:1].astype(np.float64)) is None  # another dtype: the full check converts it
+    assert run(list(x[:1])) is None
+    # valid readings whose mean +- |y - mean| reaches past the range: checked by their extremes
+    wide = np.full((1, x.shape[1]), 0.5 * (lo + hi), dtype=np.float32)
+    wide[0, 0], wide[0, 1] = np.nextafter(np.float32(lo), np.float32(hi)), np.nextafter(np.float32(hi), np.float32(lo))
+    scored = run(wide)
+    assert scored is not None
+    np.testing.assert_allclose(scored, est.predict_proba(np.concatenate([wide, x[:1]]))[:1], rtol=0, atol=TOLERANCE)
