@@ -54,7 +54,8 @@ class OneCurveRun:
     float32 of a plain valid curve ``x`` ``(1, *shape)``, else ``None``;
     :meth:`probabilities`: those of a curve already checked."""
 
-    first: np.ndarray  # (N, S R + L): the factored bases' first stage, shared with the batch path
+    first: np.ndarray  # (N, P): the first stage packed: every start's r_s columns, the lines', ones, zeros
+    coordinates: np.ndarray  # (S, 1, R) int: where start s's i-th coordinate is in y @ first (a zero past r_s)
     second: np.ndarray  # (S, R, L M) scaled; with pairs: design m's columns at 2 m, 2 m + 1
     class_start: np.ndarray  # (K,) where each class's templates begin
     batch_shape: tuple[int, ...]  # (1, *shape) of a curve
@@ -64,7 +65,8 @@ class OneCurveRun:
     n_columns: int  # L
     centred: bool
     pairs: bool  # L == 2: coordinates read as complex numbers
-    lines_at: int  # where the lines' coordinates begin in the first stage's product
+    lines: slice  # the lines' coordinates in y @ first
+    ones_at: int  # where y's sum is in y @ first (centred)
     scale: float  # 1 / (2 sigma^2): a squared norm's score (unscaled: the lines' part)
     none_bonus: float
 
@@ -84,18 +86,32 @@ class OneCurveRun:
         if pairs:  # column l M + m -> 2 m + l: a design's two coordinates as one complex number
             scaled = np.ascontiguousarray(scaled.reshape(n_starts, width, 2, m).transpose(0, 1, 3, 2))
             scaled = scaled.reshape(n_starts, width, n_cols_m)
+        # the first stage without the columns that only pad each start to R (a sixth of its bytes),
+        # then the lines' (nonzero) columns, the ones vector (y's sum) and a zero column (padding)
+        used = np.abs(factors.first).max(axis=0) > 0
+        starts = factors.first[:, : n_starts * width]
+        lines = factors.first[:, n_starts * width :][:, used[n_starts * width :]]
+        n = len(factors.first)
+        kept = starts[:, used[: n_starts * width]]
+        packed = np.concatenate([kept, lines, np.ones((n, 1)), np.zeros((n, 1))], axis=1)
+        if factors.centred:  # U' = U - 1 (1^T U) / N: U'^T y = U^T (y - mean) for any y (a shifted curve)
+            packed[:, :-2] -= packed[:, :-2].mean(axis=0)
+        coordinates = np.full((n_starts, 1, width), packed.shape[1] - 1)
+        coordinates.reshape(-1)[used[: n_starts * width]] = np.arange(kept.shape[1])
         return cls(
-            first=factors.first,
+            first=np.ascontiguousarray(packed),
+            coordinates=coordinates,
             second=scaled,
             class_start=factors.class_start,
             batch_shape=(1, *shape),
             bounds=bounds,
-            n_values=factors.first.shape[0],
+            n_values=n,
             n_templates=m,
             n_columns=n_cols,
             centred=factors.centred,
             pairs=pairs,
-            lines_at=n_starts * width,
+            lines=slice(kept.shape[1], kept.shape[1] + lines.shape[1]),
+            ones_at=packed.shape[1] - 2,
             scale=scale,
             none_bonus=factors.none_bonus,
         )
@@ -117,28 +133,38 @@ class OneCurveRun:
         return out
 
     def _scored(self, x: np.ndarray, check: bool) -> np.ndarray | None:
-        y = x.reshape(-1).astype(_F64)  # a copy of its own: centred in place
+        y = x.reshape(-1).astype(_F64)  # a copy of its own: shifted in place
         if self.centred:
-            mean = float(_sum_of(y)) / self.n_values
-            if check and not math.isfinite(mean):  # NaN or inf: the full check's error
+            # shifted by its first value, not centred (one pass less): the first stage's columns
+            # are centred themselves, and |y - mean|^2 = |y - c|^2 - N (mean - c)^2 cancels at most
+            # a factor N + 1 (c is a value of y: |mean - c| <= |y - mean|), the rounding of a
+            # length-N dot product
+            shift = float(y[0])
+            if check and not math.isfinite(shift):  # NaN or inf: the full check's error
                 return None
-            y -= mean
-            yy = float(y @ y)
+            y -= shift
+            squares = float(y @ y)
+            if check and not math.isfinite(squares):  # NaN or inf (before a product warns of it)
+                return None
+            z = y @ self.first
+            total = float(z[self.ones_at])
+            yy = max(squares - total * total / self.n_values, 0.0)
             if check:
                 # every value lies within |y - m 1| of any m: a curve whose mean +- |y - mean| lies
                 # inside the bounds is valid with no pass of its own (~70 % of touches; the factor
-                # covers the rounding of |y - mean|^2, (N + 2) eps, the absolute term the sums')
+                # covers the rounding of |y - mean|^2, the absolute term the sums')
+                mean = shift + total / self.n_values
                 reach = math.sqrt(yy) * (1.0 + 1e-9) + 1e-12 * abs(mean)
                 check = not self._inside(mean - reach, mean + reach)  # else: its extremes
         else:
             yy = float(y @ y)
         if check and not self._inside(float(_min_of(x, axis=None)), float(_max_of(x, axis=None))):
             return None  # out of range, NaN or inf: the full check's error
-        z = y @ self.first
+        if not self.centred:
+            z = y @ self.first
         second = self.second
-        n_starts, width = second.shape[0], second.shape[1]
-        at = self.lines_at
-        proj = _matmul(z[:at].reshape(n_starts, 1, width), second)  # (S, 1, L M): scaled coordinates
+        proj = _matmul(z.take(self.coordinates), second)  # (S, 1, L M): scaled coordinates
+        n_starts = second.shape[0]
         m = self.n_templates
         if self.pairs:
             by_design = _abs(proj.view(_C128)).reshape(n_starts, m)  # norms
@@ -154,7 +180,7 @@ class OneCurveRun:
             best = [v * v for v in best]
         scale = self.scale
         yy *= scale
-        l2 = scale * sum([v * v for v in z[at:].tolist()])
+        l2 = scale * sum([v * v for v in z[self.lines].tolist()])
         top = max(best)
         if top > yy:  # a projection above |y|^2 by rounding: the batch's residual clamped at 0
             best = [min(v, yy) for v in best]
