@@ -213,7 +213,7 @@ class CalibratedFitEstimator(Classifier):
         if run is not None:  # one plain valid curve: checked and scored at once (calibrated_one_curve_run)
             out = run(X)
             if out is not None:
-                return labels_of(out)
+                return out.argmax(axis=1)  # int64: labels_of without its conversions
         return labels_of(self.predict_proba_checked(self.prepared_state("input_check_")(X)))
 
     def predict_proba(self, X: np.ndarray) -> np.ndarray:

@@ -174,19 +174,20 @@ class OneCurveRun:
             by_design = flat[:, :m]
             for column in range(1, self.n_columns):
                 by_design = by_design + flat[:, column * m : (column + 1) * m]
-        best = np.maximum.reduceat(_max_of(by_design, axis=0), self.class_start).tolist()
+        # each class's best over its templates and starts: norms (pairs) or squared norms
+        values = np.maximum.reduceat(_max_of(by_design, axis=0), self.class_start).tolist()
         # the rest on K + 2 Python floats (fewer calls than numpy's on arrays this short)
-        if self.pairs:
-            best = [v * v for v in best]
+        squared = not self.pairs
+        top = max(values) if squared else max(values) ** 2
         scale = self.scale
         yy *= scale
-        l2 = scale * sum([v * v for v in z[self.lines].tolist()])
-        top = max(best)
         if top > yy:  # a projection above |y|^2 by rounding: the batch's residual clamped at 0
-            best = [min(v, yy) for v in best]
-            top = yy
-        best.append(min(l2, yy) + self.none_bonus)  # the lines' score (+ bonus) less -|y|^2, as the classes'
-        top = max(top, best[-1])
-        e = [_exp(v - top) for v in best]
+            values = [min(v if squared else v * v, yy) for v in values]
+            squared, top = True, yy
+        # the lines' score (+ bonus) less -|y|^2, as the classes'
+        none = min(scale * sum([v * v for v in z[self.lines].tolist()]), yy) + self.none_bonus
+        top = max(top, none)
+        e = [_exp(v - top) for v in values] if squared else [_exp(v * v - top) for v in values]
+        e.append(_exp(none - top))
         inv_total = 1.0 / sum(e)
         return np.array([[v * inv_total for v in e]], dtype=_F32)

@@ -40,6 +40,9 @@ def assert_single_curves_equal_the_batch(est: CalibratedFitEstimator, x: np.ndar
     batch, single = est.predict_proba(x), one_by_one(est, x)
     np.testing.assert_allclose(single, batch, rtol=0, atol=TOLERANCE)
     np.testing.assert_array_equal(single.argmax(axis=1), batch.argmax(axis=1))
+    labels = [est.predict(x[i : i + 1]) for i in range(len(x))]
+    assert all(label.dtype == np.int64 and label.shape == (1,) for label in labels)
+    np.testing.assert_array_equal(np.concatenate(labels), est.predict(x))
 
 
 @pytest.mark.parametrize("scene_name", ["thermal", "thermal_wns", "robot", "robot_step"])
