@@ -12,6 +12,7 @@ from synth.errors import InputError
 from synth.scene import Scene, load_scene
 from tactile_learn.estimators.classical.calibrated_fit import CalibratedFitEstimator
 from tactile_learn.estimators.classical.calibrated_one_curve import StartFactoredBases
+from tactile_learn.estimators.classical.calibrated_one_curve_run import overlapping_windows
 from tactile_learn.frame_stream import FrameStream
 from tactile_learn.tasks.thermal import ThermalTask
 from tests.paths import REPO_ROOT
@@ -175,3 +176,28 @@ def test_one_frame_run_scores_plain_curves_and_leaves_the_rest_to_the_full_check
     scored = run(wide)
     assert scored is not None
     np.testing.assert_allclose(scored, est.predict_proba(np.concatenate([wide, x[:1]]))[:1], rtol=0, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def testoverlapping_windows_hold_every_block_whole(seed: int) -> None:
+    """The single-curve path's second stage: blocks of uneven height stored as overlapping windows
+    of one buffer; a window's product with coordinates that are zero outside its block's rows is
+    the block's product, and the buffer is smaller than blocks zero-padded to the window."""
+    rng = np.random.default_rng(seed)
+    width, columns = 12, 7
+    heights = rng.integers(3, width + 1, size=9)
+    heights[0] = width
+    blocks = [rng.normal(size=(h, columns)) for h in heights]
+    windows, placed = overlapping_windows(blocks, width)
+    assert windows.shape == (len(blocks), width, columns) and not windows.flags.writeable
+    assert sorted(b for b, _ in placed) == list(range(len(blocks)))
+    coordinates = np.zeros((len(blocks), 1, width))
+    for window, (b, offset) in enumerate(placed):
+        np.testing.assert_array_equal(windows[window, offset : offset + heights[b]], blocks[b])
+        coordinates[window, 0, offset : offset + heights[b]] = rng.normal(size=heights[b])
+    products = np.matmul(coordinates, windows)
+    for window, (b, offset) in enumerate(placed):
+        expected = coordinates[window, 0, offset : offset + heights[b]] @ blocks[b]
+        np.testing.assert_allclose(products[window, 0], expected, rtol=1e-13, atol=1e-13)
+    buffer_rows = (len(blocks) - 1) * (windows.strides[0] // windows.strides[1]) + width
+    assert buffer_rows < len(blocks) * width
