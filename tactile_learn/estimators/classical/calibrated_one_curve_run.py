@@ -141,10 +141,16 @@ class OneCurveRun:
             return None
         return self._scored(x, True)
 
-    def _inside(self, lo: float, hi: float) -> bool:
-        """Whether values from ``lo`` to ``hi`` pass the full check's range (NaN: ``False``)."""
+    def _in_range(self, x: np.ndarray, lo: float, hi: float) -> bool:
+        """Whether the values of ``x``, known to lie from ``lo`` to ``hi`` (NaN: unknown), pass the
+        full check's range: its smallest or largest value is read only where ``lo`` or ``hi`` does
+        not decide (NaN in ``x`` passes no comparison)."""
         low, high, strict = self.bounds  # type: ignore[misc]
-        return hi < high and (lo > low if strict else lo >= low)
+        if not hi < high and not float(_max_of(x, axis=None)) < high:
+            return False
+        if strict:
+            return lo > low or float(_min_of(x, axis=None)) > low
+        return lo >= low or float(_min_of(x, axis=None)) >= low
 
     def probabilities(self, x: np.ndarray) -> np.ndarray:
         """The probabilities ``(1, K + 1)`` float32 of one checked curve ``x`` ``(1, *shape)``."""
@@ -171,15 +177,17 @@ class OneCurveRun:
             yy = max(squares - total * total / self.n_values, 0.0)
             if check:
                 # every value lies within |y - m 1| of any m: a curve whose mean +- |y - mean| lies
-                # inside the bounds is valid with no pass of its own (~70 % of touches; the factor
-                # covers the rounding of |y - mean|^2, the absolute term the sums')
+                # inside the bounds is valid with no pass of its own (~70 % of touches; the others
+                # read their extreme on the side in doubt); the factor covers the rounding of
+                # |y - mean|^2, the absolute term the sums'
                 mean = shift + total / self.n_values
                 reach = math.sqrt(yy) * (1.0 + 1e-9) + 1e-12 * abs(mean)
-                check = not self._inside(mean - reach, mean + reach)  # else: its extremes
+                if not self._in_range(x, mean - reach, mean + reach):
+                    return None  # out of range: the full check's error
         else:
             yy = float(y @ y)
-        if check and not self._inside(float(_min_of(x, axis=None)), float(_max_of(x, axis=None))):
-            return None  # out of range, NaN or inf: the full check's error
+            if check and not self._in_range(x, math.nan, math.nan):
+                return None  # out of range, NaN or inf: the full check's error
         if not self.centred:
             z = y @ self.first
         second = self.second
