@@ -253,7 +253,8 @@ class CalibratedFitEstimator(Classifier):
 
     def one_frame_run(self) -> Callable[[object], np.ndarray | None]:
         """A function of one frame giving its probabilities where it is a plain valid curve (float32,
-        the scene's shape, inside the ADC's range: checked with two reductions), else ``None``
+        the scene's shape, inside the ADC's range: checked from its mean and spread, most curves with
+        no pass of their own), else ``None``
         (:class:`~tactile_learn.frame_stream.FrameStream` calls it first for the frames of an
         ungated stream; ``None`` sends a frame through the stream's own checks and their errors)."""
         run: OneCurveRun = self.prepared_state("one_run_")
