@@ -44,7 +44,7 @@ from synth.sensors.thermal.dynamics import (
     _split_lags,
 )
 
-__all__ = ["EventTerms", "contact_event_terms", "conductance_multiplier"]
+__all__ = ["EventTerms", "conductance_multiplier", "contact_event_terms"]
 
 
 @dataclass(frozen=True)
@@ -171,7 +171,7 @@ def contact_event_terms(
         rows = np.flatnonzero((codes == code) & active)
         part = model._rows(rows)
         q0 = _contact_fluxes(part, cells[rows] + 0.5 * dt, ramp[rows], None if t_pow is None else t_pow[rows])
-        body, reading, surface = _flux_step_responses(part, (np.arange(n + 1) + 0.5) * dt)
+        body, _, surface = _flux_step_responses(part, (np.arange(n + 1) + 0.5) * dt)
         kernel = np.diff(body + surface, axis=1, prepend=0.0)[:, :n]  # W_0 = S(dt/2), W_k = S((k+1/2)dt) - ..
         h0m = part.conductance[:, None] * m[rows]  # (R, N)
         src = (m[rows] - 1.0)[None] * q0  # (3, R, N)

@@ -13,7 +13,6 @@ from synth.sensors.thermal.approach import K_AIR_W_MK, approach_term, gap_conduc
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
 from tests.thermal_reference import varying_contact_reading
 
-
 CASES = [
     # a heated channel (two lags) on a metal, a passive bead (one lag, a lower contact) on a wood
     ("aluminium", dict(heat_capacity=4000.0, loss=600.0, conductance=1000.0, lag1_s=0.8, lag2_s=0.5), 100e-6, 3e-3),
