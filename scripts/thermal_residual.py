@@ -41,6 +41,8 @@ VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "contact_precursor+weighted": (("contact_precursor",), True),
     "approach": (("approach",), False),
     "approach+weighted": (("approach",), True),
+    "contact_events": (("contact_events",), False),
+    "contact_events+weighted": (("contact_events",), True),
 }
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["residual_kinks"]
+__all__ = ["event_times", "residual_kinks"]
 
 #: each side's window for the slope about a sample (s)
 HALF_S = 0.3
@@ -62,6 +62,32 @@ def _line_rms(t: np.ndarray, r: np.ndarray, hinges: list[float]) -> np.ndarray:
     """What is left of ``r`` about a line plus hinges ``max(t - t_k, 0)`` (least squares)."""
     cols = np.stack([np.ones_like(t), t, *(np.maximum(t - tk, 0.0) for tk in hinges)], axis=1)
     return r - cols @ np.linalg.lstsq(cols, r, rcond=None)[0]
+
+
+#: kinks of two channels this close are one contact event (s): 7 of 10 cooled-wood heated kinks on
+#: R_1 have a passive one within 0.15 s, and the channels' different lags delay one step's bend by
+#: 0.15-0.35 s (simulated), so up to 0.2 s apart
+SAME_EVENT_S = 0.3
+
+
+def event_times(res: np.ndarray, t: np.ndarray, mask: np.ndarray, onset: np.ndarray, fs: float) -> list[list[float]]:
+    """Contact events found in residuals ``res`` (C, n, W) (as :func:`residual_kinks`): per touch the
+    times (s after the onset) of every channel's kinks, one event where two channels' kinks lie
+    within ``SAME_EVENT_S`` (the same slip felt by both thermistors), the stronger one's time."""
+    n_side = max(round(HALF_S * fs), 2)
+    out = []
+    for i in range(res.shape[1]):
+        tt = t[i][mask[i]] - onset[i]
+        found: list[tuple[float, float]] = []  # (|slope change| relative to the threshold, time)
+        for c in range(res.shape[0]):
+            change = _slope_change(tt, res[c, i][mask[i]], n_side)
+            found += [(abs(float(change[k])), float(tt[k])) for k in _kinks(tt, change)]
+        kept: list[float] = []
+        for _, time in sorted(found, reverse=True):
+            if all(abs(time - other) > SAME_EVENT_S for other in kept):
+                kept.append(time)
+        out.append(sorted(kept))
+    return out
 
 
 def residual_kinks(
