@@ -119,6 +119,9 @@ APPROACH_HZ = 25.0
 #: time within +-EVENT_SHIFT_S (the placement's grid is 0.05 s); the Volterra quadrature on a grid of
 #: EVENT_HZ (0.01-0.02 % of the term against the finite-volume solution)
 EVENT_FACTOR_MAX = 2.0
+#: one factor per event for both channels (the pad's real contact area changes alike under both
+#: thermistors) instead of one per channel
+EVENT_FACTOR_SHARED = False
 EVENT_SHIFT_S = (-0.15, 0.15)
 EVENT_HZ = 25.0
 #: the contact precursor's length (s before the contact start): see NUISANCE_TERMS
@@ -411,12 +414,18 @@ class _Problem:
         bound = math.log(EVENT_FACTOR_MAX)
         out = []
         for k in range(self.event_t.shape[1]):
-            for ch in ("heated", "passive") if self.passive else ("heated",):
-                doc = f"log of the {ch} channel's contact conductance factor at the touch's event {k}"
+            for ch in self._event_channels():
+                doc = f"log of the {ch} contact conductance factor at the touch's event {k}"
                 out.append(Parameter(f"event{k}.{ch}_log_factor", "", -bound, bound, 0.0, False, doc))
             doc = f"shift of event {k}'s time from the kink's"
             out.append(Parameter(f"event{k}.shift_s", "s", *EVENT_SHIFT_S, 0.0, False, doc))
         return out
+
+    def _event_channels(self) -> tuple[str, ...]:
+        """Whose factor an event has: each channel's, or one for both (EVENT_FACTOR_SHARED)."""
+        if EVENT_FACTOR_SHARED and self.passive:
+            return ("both",)
+        return ("heated", "passive") if self.passive else ("heated",)
 
     def events(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """The events' times (n, K) after each onset and every channel's factors (C, n, K), or None."""
@@ -431,10 +440,12 @@ class _Problem:
 
         slots = range(self.event_t.shape[1])
         times = self.event_t + np.stack([values(f"event{k}.shift_s") for k in slots], axis=1)
-        channels = ("heated", "passive") if self.passive else ("heated",)
+        channels = self._event_channels()
         factors = np.exp(
             np.stack([np.stack([values(f"event{k}.{ch}_log_factor") for k in slots], axis=1) for ch in channels])
         )
+        if channels == ("both",):
+            factors = np.concatenate([factors, factors])
         return times, factors
 
     def with_touch_contact(self, noise: dict[str, dict[str, float]] | None = None) -> _Problem:
@@ -720,14 +731,13 @@ def calibrate_channels(
             ]
         )
         if "contact_events" in problem.nuisance:  # placed at the kinks of every touch's own-contact residual
-            times, logs = place_events(problem, x0, FIT_HZ)
+            times, logs = place_events(problem, x0, FIT_HZ, shared=problem._event_channels() == ("both",))
             problem = problem.with_events(times).with_touch_contact(noise if noise_weighted else None)
             bound = math.log(EVENT_FACTOR_MAX) * (1 - 1e-3)
             event_x0: list[np.ndarray] = []
             for k in range(logs.shape[2]):  # per slot: each channel's log factor, then the shift (0)
-                event_x0 += [np.clip(logs[c, :, k], -bound, bound) for c in range(logs.shape[0])] + [
-                    np.zeros(problem.n)
-                ]
+                event_x0 += [np.clip(logs[c, :, k], -bound, bound) for c in range(logs.shape[0])]
+                event_x0.append(np.zeros(problem.n))
             x0 = np.concatenate([x0, *event_x0])
         lo2, hi2 = problem.bounds()
         final = optimize.least_squares(
@@ -1013,7 +1023,7 @@ def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, 
     jac = np.asarray(fit.jac)
     cov = np.linalg.pinv(jac.T @ jac) * float(np.mean(fit.fun**2))
     names = [p.name for p in problem.per_touch]
-    channels = ("heated", "passive") if problem.passive else ("heated",)
+    channels = problem._event_channels()
     bound = math.log(EVENT_FACTOR_MAX)
     rows, at_bound = [], 0
     for i in range(problem.n):

@@ -58,10 +58,13 @@ def _templates(problem: _Problem, free: np.ndarray, i: int, taus: np.ndarray) ->
     return np.stack(out)
 
 
-def place_events(problem: _Problem, free: np.ndarray, fs: float) -> tuple[list[list[float]], np.ndarray]:
+def place_events(
+    problem: _Problem, free: np.ndarray, fs: float, shared: bool = False
+) -> tuple[list[list[float]], np.ndarray]:
     """Every touch's events (s after its onset) and each channel's starting log factor per event,
-    (C, n, K) with K the most events of a touch (0 where a touch has fewer). ``problem`` at ``free``
-    without events; ``fs`` the fitting grid's rate."""
+    (C, n, K) with K the most events of a touch (0 where a touch has fewer; ``shared``: one factor
+    for both channels, (1, n, K)). ``problem`` at ``free`` without events; ``fs`` the fitting
+    grid's rate."""
     res, sol, _ = problem.solve(free)
     cols, _, extra = problem.design(free)
     values, _, _ = problem.unpack(free)
@@ -95,13 +98,18 @@ def place_events(problem: _Problem, free: np.ndarray, fs: float) -> tuple[list[l
             shapes = _templates(problem, free, i, taus) * np.array(v0)[:, None, None]
             best, best_gain, best_fit = 0, -1.0, None
             for k in range(len(taus)):
-                gain, fit = 0.0, []
-                for c in range(len(channels)):
-                    col = shapes[c, k] - basis[c] @ np.linalg.lstsq(basis[c], shapes[c, k], rcond=None)[0]
-                    norm = float(col @ col)
-                    a = float(col @ current[c]) / norm if norm > 0 else 0.0
-                    fit.append((a, col))
-                    gain += a * a * norm
+                proj = [
+                    shapes[c, k] - basis[c] @ np.linalg.lstsq(basis[c], shapes[c, k], rcond=None)[0]
+                    for c in range(len(channels))
+                ]
+                norms = np.array([float(col @ col) for col in proj])
+                dots = np.array([float(col @ current[c]) for c, col in enumerate(proj)])
+                if shared:  # one amplitude for both channels
+                    a_all = np.full(len(channels), dots.sum() / max(norms.sum(), 1e-300))
+                else:
+                    a_all = np.where(norms > 0, dots / np.where(norms > 0, norms, 1.0), 0.0)
+                fit = list(zip(a_all.tolist(), proj, strict=True))
+                gain = float(np.sum(2 * a_all * dots - a_all**2 * norms))  # the drop of the squared residual
                 if gain > best_gain:
                     best, best_gain, best_fit = k, gain, fit
             assert best_fit is not None
@@ -113,8 +121,8 @@ def place_events(problem: _Problem, free: np.ndarray, fs: float) -> tuple[list[l
         times.append([placed[k] for k in order])
         sizes.append([steps[k] for k in order])
     slots = max((len(row) for row in times), default=0)
-    logs = np.zeros((len(channels), problem.n, slots))
+    logs = np.zeros((1 if shared else len(channels), problem.n, slots))
     for i, row in enumerate(sizes):
         for k, step in enumerate(row):
-            logs[:, i, k] = step
+            logs[:, i, k] = step[: logs.shape[0]]
     return times, logs
