@@ -67,7 +67,7 @@ from synth.sensors.thermal.approach import approach_term
 from synth.sensors.thermal.contact_events import contact_event_terms
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
 from tactile_learn.calibration.thermal_events import place_events
-from tactile_learn.calibration.thermal_kinks import residual_kinks
+from tactile_learn.calibration.thermal_kinks import residual_kinks, residual_windows
 
 __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
 
@@ -932,6 +932,10 @@ def _report(
         problem.onset,
         FIT_HZ,
         ("heated", "passive") if problem.passive else ("heated",),
+    )
+    # where the residual is in time (the contact's start, the first second, later)
+    residual["windows"] = residual_windows(
+        own_res, problem.t, problem.mask, problem.onset, ("heated", "passive") if problem.passive else ("heated",)
     )
     residual["contact"] = (
         "each touch with its own contact (conductance factor, lead, build-up: the touch's nuisance "

@@ -13,11 +13,13 @@ kink explains.
 
 from __future__ import annotations
 
+import itertools
+import math
 from typing import Any
 
 import numpy as np
 
-__all__ = ["event_times", "residual_kinks"]
+__all__ = ["WINDOWS_S", "event_times", "residual_kinks", "residual_windows"]
 
 #: each side's window for the slope about a sample (s)
 HALF_S = 0.3
@@ -141,4 +143,35 @@ def residual_kinks(
             "late_rms_about_a_line_k": rms(s["line"]),
             "late_rms_about_a_line_and_hinges_k": rms(s["hinged"]),
         }
+    return out
+
+
+#: the residual's time windows (s after the onset): before the onset (the contact's start), the
+#: first second in two halves, then later and later
+WINDOWS_S = (-math.inf, 0.0, 0.5, 1.0, 2.0, 4.0, math.inf)
+
+
+def residual_windows(
+    res: np.ndarray, t: np.ndarray, mask: np.ndarray, onset: np.ndarray, channels: tuple[str, ...]
+) -> dict[str, Any]:
+    """Where the residual is: per channel and time window (:data:`WINDOWS_S`, after each onset) the
+    RMS (K), the number of samples and the window's share of the channel's sum of squares."""
+    rel = t - onset[:, None]
+    out: dict[str, Any] = {}
+    for c, ch in enumerate(channels):
+        total = float((res[c][mask] ** 2).sum())
+        rows = []
+        for lo, hi in itertools.pairwise(WINDOWS_S):
+            sel = mask & (rel >= lo) & (rel < hi)
+            ss = float((res[c][sel] ** 2).sum())
+            rows.append(
+                {
+                    "from_s": None if math.isinf(lo) else lo,
+                    "to_s": None if math.isinf(hi) else hi,
+                    "samples": int(sel.sum()),
+                    "rms_k": math.sqrt(ss / sel.sum()) if sel.any() else float("nan"),
+                    "share_of_squares": ss / total if total > 0 else 0.0,
+                }
+            )
+        out[ch] = rows
     return out
