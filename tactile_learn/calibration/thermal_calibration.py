@@ -1038,7 +1038,7 @@ def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, 
                 log_f = math.log(float(factors[c, i, k]))
                 row[f"{ch}_factor"] = float(factors[c, i, k])
                 row[f"{ch}_sd_log"] = float(np.sqrt(max(cov[col, col], 0.0)))
-                if bound - abs(log_f) < 1e-3 * bound:
+                if bound - abs(log_f) < 1e-3 * 2 * bound:  # within 1e-3 of the span, as the other parameters
                     row[f"{ch}_at_bound"] = True
                     at_bound += 1
             rows.append(row)
@@ -1047,6 +1047,11 @@ def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, 
         "count": len(rows),
         "factor_bounds": [1.0 / EVENT_FACTOR_MAX, EVENT_FACTOR_MAX],
         "factors_at_bound": at_bound,
+        "why_at_bound": "a step the fit would make larger than twofold: what the residual holds there is more than a "
+        "change of the contact conductance (the kinks are sharper than a step behind the thermistor's lags can bend "
+        "the reading)"
+        if at_bound
+        else None,
         "meaning": "the contact conductance of each channel times the factor from the event's time on (slip or "
         "creep of the pad while the force holds); events found at the kinks of the own-contact residual",
     }
