@@ -33,8 +33,12 @@ parameters at once (each moves its own touch's rows only). Optional per-touch nu
 (``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
 object's flux (its temperature not uniform with depth), the heater's power steps, and a contact
 precursor (part of the contact arriving over the ``PRECURSOR_S`` before it, one amplitude per
-channel). Optional too (``noise_weighted``): the joint refinement in units of each sample's noise
-s.d. (the maximum-likelihood fit in the unit the residual is reported in) with weak linear priors.
+channel). Optional and nonlinear: the approach through the closing air gap (two shared parameters)
+and contact events (``"contact_events"``: each channel's contact conductance steps by a bounded
+factor at events placed at the kinks of the own-contact residual, :mod:`.thermal_events`; per-touch
+parameters of the joint refinement). Optional too (``noise_weighted``): the joint refinement in
+units of each sample's noise s.d. (the maximum-likelihood fit in the unit the residual is reported
+in) with weak linear priors.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
@@ -429,7 +433,7 @@ class _Problem:
 
     def events(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """The events' times (n, K) after each onset and every channel's factors (C, n, K), or None."""
-        if self.event_t is None or not self.per_touch:
+        if self.event_t is None or not self.per_touch or self.event_t.shape[1] == 0:
             return None
         names = [p.name for p in self.per_touch]
         k0, n = len(self.shared), self.n
@@ -1022,8 +1026,8 @@ def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, 
     """Every contact event: its touch, time, each channel's conductance factor with its posterior
     s.d. (log) and whether it sits at a bound; how many factors sit at a bound."""
     events = problem.events(fit.x)
-    assert events is not None and problem.event_t is not None
-    times, factors = events
+    assert problem.event_t is not None
+    times, factors = events if events is not None else (problem.event_t, np.ones((1, *problem.event_t.shape)))
     jac = np.asarray(fit.jac)
     cov = np.linalg.pinv(jac.T @ jac) * float(np.mean(fit.fun**2))
     names = [p.name for p in problem.per_touch]
