@@ -59,6 +59,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -1036,7 +1037,8 @@ def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, 
     rows, at_bound = [], 0
     for i in range(problem.n):
         for k in np.flatnonzero(np.isfinite(problem.event_t[i])):
-            row: dict[str, Any] = {"touch": problem.touches[i].file, "t_s": float(times[i, k])}
+            # the recording's file name only (a report goes into a model card: no path of this machine)
+            row: dict[str, Any] = {"touch": Path(problem.touches[i].file).name, "t_s": float(times[i, k])}
             for c, ch in enumerate(channels):
                 col = problem.n_free + names.index(f"event{k}.{ch}_log_factor") * problem.n + i
                 log_f = math.log(float(factors[c, i, k]))
