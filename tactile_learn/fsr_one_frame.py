@@ -13,6 +13,7 @@ the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from operator import mul, sub
 from typing import TYPE_CHECKING
 
@@ -82,7 +83,11 @@ class OneFrameCheck:
         self.d0, self.dd, self.d_top = float(dg[0]), float(dg[1] - dg[0]), float(len(dg) - 1.000001)
         self.a0, self.da, self.a_top = float(ag[0]), float(ag[1] - ag[0]), float(len(ag) - 1.000001)
         self.d_max = float(dg[-1])
+        if dg[0] != 0.0 or ag[0] != 0.0:  # conductance_at leaves out the clamps below the grids' start
+            raise ValueError("the film's load table must start at distance 0 and radius 0")
         self.table = transfer.table.tolist()
+        #: the table by column (radius): a force fixes two columns, read at two distances per sensor
+        self.columns = transfer.table.T.tolist()
         self.transfer = transfer
         self.leak, self.per_n = float(el.leak_conductance_us), float(el.conductance_us_per_n)
         self.break_n, self.width_n, self.sat_n = (
@@ -96,6 +101,19 @@ class OneFrameCheck:
         # the same by code, for a look-up that is also the check (NaN or a fractional code is no key)
         self.conductance_of_code = {float(code): g for code, g in enumerate(self.code_conductance)}
         self.readout = readout
+        #: what conductance_at reads on every call, in one tuple (one attribute look-up)
+        self._constants = (
+            tuple(self.positions),
+            self.columns,
+            self.dd,
+            self.d_top,
+            self.d_max,
+            self.leak,
+            self.per_n,
+            self.break_n,
+            self.width_n,
+            self.sat_n,
+        )
 
     # ---- the forward model ----------------------------------------------------------------------
 
@@ -117,32 +135,38 @@ class OneFrameCheck:
     def conductance_at(self, x: float, y: float, column: tuple[float, float, int, float]) -> list[float]:
         """:meth:`conductance` with the force's part (:meth:`column`) worked out already (the
         finite differences in ``x`` and ``y`` share it). Written out with local names: this is
-        the check's inner loop."""
+        the check's inner loop. The same operations in the same order as the batch path, less
+        two that cannot change a bit here: the clamps below the grids' start (distances and radii
+        are >= 0, the grids start at 0) and, for a load far above the break, the gate's logistic
+        (``exp(-z) < 2**-53`` for ``z > 37``: ``1 / (1 + exp(-z))`` is exactly 1)."""
         exp, tanh, sqrt = math.exp, math.tanh, math.sqrt
+        positions, columns, dd, d_top, d_max, leak, per_n, brk, width, sat = self._constants
         force, radius, j0, fj = column
-        j1, gj = j0 + 1, 1 - fj
-        table, d0, dd, d_top, d_max = self.table, self.d0, self.dd, self.d_top, self.d_max
-        leak, per_n, brk, width, sat = self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
+        near, far = columns[j0], columns[j0 + 1]  # the load table's two columns of this radius
+        gj = 1.0 - fj  # (a float constant: int - float takes a slower path; the same value)
         out = []
-        for px, py in self.positions:
+        for px, py in positions:
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
             else:
-                di = (d - d0) / dd
-                di = 0.0 if di < 0.0 else d_top if di > d_top else di
+                di = d / dd  # (d - 0) / dd
+                if di > d_top:
+                    di = d_top
                 i0 = int(di)
-                fi = di - i0
-                gi = 1 - fi
-                row, nxt = table[i0], table[i0 + 1]
-                per_newton = row[j0] * gi * gj + nxt[j0] * fi * gj + row[j1] * gi * fj + nxt[j1] * fi * fj
+                fi = di % 1.0  # di - i0 (di >= 0: both exact)
+                gi = 1.0 - fi
+                per_newton = near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj
             load = per_newton * force
             if load < 0.0:
                 load = 0.0
             z = (load - brk) / width
-            gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
-            out.append(leak + per_n * (sat * tanh(load * gate / sat)))
+            if z > 37.0:  # the gate is exactly 1
+                out.append(leak + per_n * (sat * tanh(load / sat)))
+            else:
+                gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+                out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
     def measured(self, codes: list[float]) -> list[float]:
@@ -229,19 +253,27 @@ class OneFrameCheck:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
+        return self.flag_inside(codes, estimate[0], estimate[1], estimate[2], screen)
+
+    def flag_inside(
+        self, codes: list[float], x: float, y: float, force: float, screen: Sequence[float] | None = None
+    ) -> float:
+        """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
+        (float32 values)."""
         measured = self.measured(codes)
+        threshold, conductance = self.threshold, self.conductance
         if screen is not None:  # the screen's point first, as the batch path
-            at_screen = self.conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
-            if self.misfit(measured, at_screen) <= self.threshold:
+            at_screen = conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
+            if self.misfit(measured, at_screen) <= threshold:
                 return 1.0
-        start = [float(estimate[0]), float(estimate[1]), _log_force(estimate[2])]
-        base = self.conductance(*start)
-        if self.misfit(measured, base) <= self.threshold:
+        start = [float(x), float(y), _log_force(force)]
+        base = conductance(*start)
+        if self.misfit(measured, base) <= threshold:
             return 1.0
-        if self.refined_misfit(measured, start, self.threshold, base) <= self.threshold:
+        if self.refined_misfit(measured, start, threshold, base) <= threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
         total = sum(weights)
         cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
         cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
-        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], self.threshold) <= self.threshold else 0.0
+        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], threshold) <= threshold else 0.0
