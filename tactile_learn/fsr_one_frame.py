@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from operator import mul, sub
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,6 +75,8 @@ class OneFrameCheck:
         self.steps = int(check.steps)
         self.floor_us = float(check.floor_us)
         self.positions = [(float(x), float(y)) for x, y in positions]
+        if len(self.positions) != 6:  # the misfit's sums are written out for the film's six sensors
+            raise ValueError(f"the one-frame check is written for six sensors, got {len(self.positions)}")
         lay, el = config.layout, config.element
         e_star = lay.youngs_modulus_mpa / (1.0 - lay.poisson**2)  # as fsr.hertz_radius_mm
         self.tip, self.e_star = float(tip), float(e_star)
@@ -184,13 +185,16 @@ class OneFrameCheck:
 
     def _scale(self, measured: list[float]) -> float:
         """The misfit's denominator: RMS measured conductance plus the floor."""
-        return math.sqrt(sum(map(mul, measured, measured)) / len(measured)) + self.floor_us
+        m0, m1, m2, m3, m4, m5 = measured  # six sensors, summed in order from the first (as numpy)
+        return math.sqrt((m0 * m0 + m1 * m1 + m2 * m2 + m3 * m3 + m4 * m4 + m5 * m5) / 6) + self.floor_us
 
     @staticmethod
     def _cost(measured: list[float], model: list[float]) -> float:
-        """Summed squared conductance misfit (the batch path's ``cost``)."""
-        resid = list(map(sub, measured, model))
-        return sum(map(mul, resid, resid))
+        """Summed squared conductance misfit (the batch path's ``cost``): six sensors, in order."""
+        m0, m1, m2, m3, m4, m5 = measured
+        c0, c1, c2, c3, c4, c5 = model
+        r0, r1, r2, r3, r4, r5 = m0 - c0, m1 - c1, m2 - c2, m3 - c3, m4 - c4, m5 - c5
+        return r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3 + r4 * r4 + r5 * r5
 
     def misfit(self, measured: list[float], model: list[float]) -> float:
         """Relative RMS misfit (:meth:`OnePressCheck._misfit`)."""

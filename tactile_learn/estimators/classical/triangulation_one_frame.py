@@ -62,6 +62,18 @@ class OneFrameTriangulation:
         self.neg_inv_m = -1.0 / model.m
         self.h2 = model.h_mm**2
         self.on_axis = max(model.on_axis, 1e-300)
+        #: what _solve reads on every call, in one tuple (one attribute look-up)
+        self._constants = (
+            self.min_load,
+            self.low_load,
+            self.neg_inv_m,
+            self.on_axis,
+            self.inside_depth,
+            float(model.m),
+            float(model.c),
+            float(model.force_scale),
+            float(model.force_exponent),
+        )
         self.loads_of_codes_array = loads_of_codes
         self.loads_of_codes = loads_of_codes.tolist()
         self.loads_from_readings = loads_from_readings
@@ -118,30 +130,21 @@ class OneFrameTriangulation:
             return [table[int(c)] for c in codes]
         return [float(v) for v in self.loads_from_readings(np.array([codes]))[0]]
 
-    def _force(self, k: float) -> float:
-        """:meth:`LoadModel.force` on a float; an overflow is inf, as numpy's (then zeroed)."""
-        model = self.model
-        try:
-            raw = max(k, 0.0) ** model.m / model.c
-            return float(model.force_scale * raw**model.force_exponent)
-        except OverflowError:
-            return math.inf
-
     def _solve(self, loads: list[float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
         """One triangle's closed form with the fallbacks (``solve_triangles`` for one frame):
-        x, y, force, valid sensors, inside, depth, summed load."""
+        x, y, force, valid sensors, inside, depth, summed load. (``min`` and ``max`` of two or
+        three numbers written out as comparisons: the same first-of-equals and NaN behaviour.)"""
         pick, a00, a01, a10, a11, u0, u1, x00, x01, cx, cy, b00, b01, b10, b11, gamma, corners = tri
+        min_load, low, power, on_axis, inside_depth, m, c, scale, exponent = self._constants
         f0, f1, f2 = pick(loads)
-        min_load = self.min_load
         n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
         total = f0 + f1 + f2
         if n_valid <= 1:  # put the contact on the strongest sensor (the batch path's fallback)
             f = (f0, f1, f2)
             strongest = _argmax(f)
-            force = max(f[strongest], 0.0) / self.on_axis
+            force = max(f[strongest], 0.0) / on_axis
             x, y = corners[strongest]
             return x, y, (force if math.isfinite(force) else 0.0), n_valid, False, 0.0, total
-        low, power = self.low_load, self.neg_inv_m
         g0 = max(f0 if f0 >= min_load else low, 1e-9) ** power
         dg0 = max(f1 if f1 >= min_load else low, 1e-9) ** power - g0
         dg1 = max(f2 if f2 >= min_load else low, 1e-9) ** power - g0
@@ -158,21 +161,36 @@ class OneFrameTriangulation:
             sq = math.sqrt(disc)
             k1, k2 = (-beta - sq) / (2 * alpha), (-beta + sq) / (2 * alpha)
         # the first root, then the second where it lies deeper inside (the batch path's argmax:
-        # the first of equals)
+        # the first of equals); depth: the smallest barycentric coordinate (> 0 inside)
         x, y = x00 + k1 * x1x, x01 + k1 * x1y
         ex, ey = x - cx, y - cy
         l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-        depth = min(1.0 - (l1 + l2), l1, l2) if k1 > 0 else -math.inf  # K = (C P)^(1/m) > 0
+        depth = 1.0 - (l1 + l2)
+        if l1 < depth:
+            depth = l1
+        if l2 < depth:
+            depth = l2
+        if not k1 > 0:  # K = (C P)^(1/m) > 0
+            depth = -math.inf
         k = k1
         if k2 != k1:  # (equal roots: the same point, the first wins)
             x2, y2 = x00 + k2 * x1x, x01 + k2 * x1y
             ex, ey = x2 - cx, y2 - cy
             l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-            depth2 = min(1.0 - (l1 + l2), l1, l2) if k2 > 0 else -math.inf
+            depth2 = 1.0 - (l1 + l2)
+            if l1 < depth2:
+                depth2 = l1
+            if l2 < depth2:
+                depth2 = l2
+            if not k2 > 0:
+                depth2 = -math.inf
             if depth2 > depth:
                 k, x, y, depth = k2, x2, y2, depth2
-        force = self._force(k)
-        return x, y, (force if math.isfinite(force) else 0.0), n_valid, depth >= self.inside_depth, depth, total
+        try:  # LoadModel.force on a float; an overflow is inf, as numpy's (then zeroed)
+            force = scale * ((0.0 if k < 0.0 else k) ** m / c) ** exponent  # (max(k, 0.0))
+        except OverflowError:
+            force = math.inf
+        return x, y, (force if math.isfinite(force) else 0.0), n_valid, depth >= inside_depth, depth, total
 
     def estimate(self, codes: list[float]) -> list[float]:
         """The five columns of one frame (``x, y, force, p_contact, p_inside``)."""
