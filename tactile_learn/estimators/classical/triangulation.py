@@ -453,8 +453,9 @@ class TriangulationEstimator(Estimator):
         def run(frames: Any) -> np.ndarray | None:
             if type(frames) is np.ndarray and frames.shape == _ONE_FRAME and frames.dtype is _FLOAT32:
                 codes = frames.tolist()[0]
+                c0, c1, c2, c3, c4, c5 = codes
                 try:
-                    loads = [table[c] for c in codes]
+                    loads = [table[c0], table[c1], table[c2], table[c3], table[c4], table[c5]]
                 except KeyError:  # the general check: its clear error, or the general path
                     return None
                 return predict_loads(codes, loads)

@@ -65,7 +65,7 @@ class OneFrameTriangulation:
         #: what _solve reads on every call, in one tuple (one attribute look-up)
         self._constants = (
             self.min_load,
-            self.low_load,
+            self.low_load**self.neg_inv_m,  # g of a sensor below the valid load (low_load >= 1e-9)
             self.neg_inv_m,
             self.on_axis,
             self.inside_depth,
@@ -135,7 +135,7 @@ class OneFrameTriangulation:
         x, y, force, valid sensors, inside, depth, summed load. (``min`` and ``max`` of two or
         three numbers written out as comparisons: the same first-of-equals and NaN behaviour.)"""
         pick, a00, a01, a10, a11, u0, u1, x00, x01, cx, cy, b00, b01, b10, b11, gamma, corners = tri
-        min_load, low, power, on_axis, inside_depth, m, c, scale, exponent = self._constants
+        min_load, g_low, power, on_axis, inside_depth, m, c, scale, exponent = self._constants
         f0, f1, f2 = pick(loads)
         n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
         total = f0 + f1 + f2
@@ -145,9 +145,10 @@ class OneFrameTriangulation:
             force = max(f[strongest], 0.0) / on_axis
             x, y = corners[strongest]
             return x, y, (force if math.isfinite(force) else 0.0), n_valid, False, 0.0, total
-        g0 = max(f0 if f0 >= min_load else low, 1e-9) ** power
-        dg0 = max(f1 if f1 >= min_load else low, 1e-9) ** power - g0
-        dg1 = max(f2 if f2 >= min_load else low, 1e-9) ** power - g0
+        # g = max(f or the low load, 1e-9) ** power, with the low load's worked out once
+        g0 = (1e-9 if f0 < 1e-9 else f0) ** power if f0 >= min_load else g_low
+        dg0 = ((1e-9 if f1 < 1e-9 else f1) ** power if f1 >= min_load else g_low) - g0
+        dg1 = ((1e-9 if f2 < 1e-9 else f2) ** power if f2 >= min_load else g_low) - g0
         x1x = a00 * dg0 + a01 * dg1
         x1y = a10 * dg0 + a11 * dg1
         alpha = x1x * x1x + x1y * x1y
