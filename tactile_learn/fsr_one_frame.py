@@ -29,9 +29,9 @@ _FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force
 
 
 def _log_force(force: float) -> float:
-    """log of a float32 force (N) clipped at 1 mN, taken in float32 (as the batch path's
-    ``_log_force``)."""
-    return float(np.log(np.float32(max(force, _FORCE_FLOOR))))
+    """log of a float32 force (N) clipped at 1 mN, in float64 (as the batch path's ``_log_force``;
+    a numpy scalar's log cost more than the rest of a press's screen)."""
+    return math.log(max(force, _FORCE_FLOOR))
 
 
 def expit(z: float) -> float:
