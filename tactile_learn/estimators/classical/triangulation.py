@@ -430,7 +430,10 @@ class TriangulationEstimator(Estimator):
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        run: Callable[[Any], np.ndarray | None] = self.prepared_state("one_frame_run_")
+        try:
+            run = self.one_frame_run_
+        except AttributeError:  # not prepared: the clear error
+            run = self.prepared_state("one_frame_run_")
         out = run(X)  # a plain single frame (a stream), or None
         if out is not None:
             return out

@@ -277,11 +277,14 @@ def frame_predictor(
     (``screen``: the same film, geometry and valid load, so the same valid sensors)."""
     valid_of, estimate_valid, flag_inside = one.valid, one.estimate_valid, check.flag_inside
     screen_estimate = None if screen is None else screen.estimate_valid
-    zeros, empty = np.zeros, np.empty
+    zeros, empty, min_load = np.zeros, np.empty, one.min_load
 
     def predict_loads(codes: list[float], loads: list[float]) -> np.ndarray:
+        l0, l1, l2, l3, l4, l5 = loads  # (valid_of written out: most frames of a stream stop here)
+        if l0 < min_load and l1 < min_load and l2 < min_load and l3 < min_load and l4 < min_load and l5 < min_load:
+            return zeros(_ROW, _FLOAT32)  # no contact: every column 0
         valid = valid_of(loads)
-        if not valid:  # no contact: every column 0
+        if not valid:  # (a NaN load: not a valid sensor either)
             return zeros(_ROW, _FLOAT32)
         x, y, force, _, p_inside = estimate_valid(loads, valid)
         out = empty(_ROW, _FLOAT32)
