@@ -105,6 +105,8 @@ class OneFrameCheck:
         self.code_conductance = readout.conductance_us(np.arange(levels, dtype=np.float64)).tolist()
         # the same by code, for a look-up that is also the check (NaN or a fractional code is no key)
         self.conductance_of_code = {float(code): g for code, g in enumerate(self.code_conductance)}
+        #: and packed, for codes known to be whole and in range (:meth:`measured_of_whole`)
+        self.code_conductance_packed = array("d", self.code_conductance)
         self.readout = readout
         #: what conductance_at reads on every call, in one tuple (one attribute look-up)
         self._constants = (
@@ -187,6 +189,14 @@ class OneFrameCheck:
             return [table[int(c)] for c in codes]
         return [float(g) for g in self.readout.conductance_us(np.array(codes))]  # e.g. a calibrated film's
 
+    def measured_of_whole(self, codes: list[float]) -> list[float]:
+        """:meth:`measured` of six codes known to be whole ADC codes (a frame whose codes were
+        all keys of a table of such codes): packed doubles rather than a dictionary's four
+        objects a code, where other work between frames evicts them."""
+        table = self.code_conductance_packed
+        c0, c1, c2, c3, c4, c5 = codes
+        return [table[int(c0)], table[int(c1)], table[int(c2)], table[int(c3)], table[int(c4)], table[int(c5)]]
+
     def _scale(self, measured: list[float]) -> float:
         """The misfit's denominator: RMS measured conductance plus the floor."""
         m0, m1, m2, m3, m4, m5 = measured  # six sensors, summed in order from the first (as numpy)
@@ -261,14 +271,13 @@ class OneFrameCheck:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
-        return self.flag_inside(codes, estimate[0], estimate[1], estimate[2], screen)
+        return self.flag_inside(self.measured(codes), estimate[0], estimate[1], estimate[2], screen)
 
     def flag_inside(
-        self, codes: list[float], x: float, y: float, force: float, screen: Sequence[float] | None = None
+        self, measured: list[float], x: float, y: float, force: float, screen: Sequence[float] | None = None
     ) -> float:
         """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
-        (float32 values)."""
-        measured = self.measured(codes)
+        (float32 values), from the frame's :meth:`measured` conductances."""
         threshold, conductance = self.threshold, self.conductance
         if screen is not None:  # the screen's point first, as the batch path
             at_screen = conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))

@@ -461,14 +461,14 @@ class TriangulationEstimator(Estimator):
                     loads = [table[c0], table[c1], table[c2], table[c3], table[c4], table[c5]]
                 except KeyError:  # the general check: its clear error, or the general path
                     return None
-                return predict_loads(codes, loads)
+                return predict_loads(codes, loads, True)
             return None
 
         return run
 
     def _predict_frame(self, one: OneFrameTriangulation, codes: list[float]) -> np.ndarray:
         """(1, 6) for one checked frame of nominal-film codes, on Python floats."""
-        predict_loads: Callable[[list[float], list[float]], np.ndarray] = self.frame_predictor_
+        predict_loads: Callable[..., np.ndarray] = self.frame_predictor_
         return predict_loads(codes, one.loads(codes))
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
@@ -476,7 +476,7 @@ class TriangulationEstimator(Estimator):
         with the single-frame state looked up once (:class:`~tactile_learn.frame_stream.FrameStream`
         calls it for the single frames of an ungated stream, after its own check)."""
         one: OneFrameTriangulation = self.prepared_state("one_frame_")
-        predict_loads: Callable[[list[float], list[float]], np.ndarray] = self.frame_predictor_
+        predict_loads: Callable[..., np.ndarray] = self.frame_predictor_
         loads = one.loads
 
         def run_frame(x: np.ndarray) -> np.ndarray:

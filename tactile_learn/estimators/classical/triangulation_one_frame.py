@@ -269,17 +269,19 @@ def _float32_point(x: float, y: float, force: float) -> tuple[float, ...]:
 
 def frame_predictor(
     one: OneFrameTriangulation, check: OneFrameCheck, screen: OneFrameTriangulation | None = None
-) -> Callable[[list[float], list[float]], np.ndarray]:
+) -> Callable[..., np.ndarray]:
     """The single-frame answer ``(1, 6)`` float32 (the batch path's ``predict_checked`` for one
-    frame) from the frame's six codes and disc loads: the estimate, rounded to float32 in the
+    frame) from the frame's six codes and disc loads (``whole``: the codes are known to be whole
+    ADC codes, as the keys of the code -> load table are): the estimate, rounded to float32 in the
     output row, the one-press check on the rounded estimate (as the batch path reads it) and, for
     the half-space kernel, the fitted kernel's solution of the same loads as the check's screen
     (``screen``: the same film, geometry and valid load, so the same valid sensors)."""
     valid_of, estimate_valid, flag_inside = one.valid, one.estimate_valid, check.flag_inside
+    measured_of, measured_of_whole = check.measured, check.measured_of_whole
     screen_estimate = None if screen is None else screen.estimate_valid
     zeros, empty, min_load = np.zeros, np.empty, one.min_load
 
-    def predict_loads(codes: list[float], loads: list[float]) -> np.ndarray:
+    def predict_loads(codes: list[float], loads: list[float], whole: bool = False) -> np.ndarray:
         l0, l1, l2, l3, l4, l5 = loads  # (valid_of written out: most frames of a stream stop here)
         if l0 < min_load and l1 < min_load and l2 < min_load and l3 < min_load and l4 < min_load and l5 < min_load:
             return zeros(_ROW, _FLOAT32)  # no contact: every column 0
@@ -298,7 +300,8 @@ def frame_predictor(
             if screen_estimate is not None:
                 sx, sy, sforce, _, _ = screen_estimate(loads, valid)
                 point = _float32_point(sx, sy, sforce)
-            _PACK_FLAG(out, 20, flag_inside(codes, x, y, force, point))
+            measured = measured_of_whole(codes) if whole else measured_of(codes)
+            _PACK_FLAG(out, 20, flag_inside(measured, x, y, force, point))
         return out
 
     return predict_loads

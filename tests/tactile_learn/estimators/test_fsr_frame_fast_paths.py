@@ -116,3 +116,10 @@ def test_the_starts_log_is_float64_on_both_paths() -> None:
     assert single[-4] == single[-3] == math.log(floor)  # clipped at 1 mN (float32)
     want = np.log(np.maximum(forces.astype(np.float64), floor))
     np.testing.assert_array_equal(batch, want)
+
+
+def test_whole_codes_read_the_packed_conductances() -> None:
+    check = one_press_check(SCENE).prepare().one_frame
+    codes = np.random.default_rng(11).integers(0, fsr.Readout(SCENE.sensor.readout).full_scale, (200, 6))
+    for row in codes.astype(float).tolist():
+        assert check.measured_of_whole(row) == check.measured(row)
