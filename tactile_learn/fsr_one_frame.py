@@ -271,21 +271,27 @@ class OneFrameCheck:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
-        return self.flag_inside(self.measured(codes), estimate[0], estimate[1], estimate[2], screen)
+        point = None if screen is None else (float(screen[0]), float(screen[1]), float(screen[2]))
+        return self.flag_inside(self.measured(codes), float(estimate[0]), float(estimate[1]), float(estimate[2]), point)
 
     def flag_inside(
         self, measured: list[float], x: float, y: float, force: float, screen: Sequence[float] | None = None
     ) -> float:
         """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
-        (float32 values), from the frame's :meth:`measured` conductances."""
-        threshold, conductance = self.threshold, self.conductance
+        (floats of float32 values; ``screen`` likewise), from the frame's :meth:`measured`
+        conductances. (:meth:`misfit` and :func:`_log_force` written out: the misfit's scale is
+        the frame's, worked out once.)"""
+        threshold, column, conductance_at, cost = self.threshold, self.column, self.conductance_at, self._cost
+        sqrt, log, floor = math.sqrt, math.log, _FORCE_FLOOR
+        scale = self._scale(measured)
         if screen is not None:  # the screen's point first, as the batch path
-            at_screen = conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
-            if self.misfit(measured, at_screen) <= threshold:
+            sx, sy, sforce = screen
+            at_screen = conductance_at(sx, sy, column(log(floor if floor > sforce else sforce)))
+            if sqrt(cost(measured, at_screen) / 6) / scale <= threshold:
                 return 1.0
-        start = [float(x), float(y), _log_force(force)]
-        base = conductance(*start)
-        if self.misfit(measured, base) <= threshold:
+        start = [x, y, log(floor if floor > force else force)]
+        base = conductance_at(x, y, column(start[2]))
+        if sqrt(cost(measured, base) / 6) / scale <= threshold:
             return 1.0
         if self.refined_misfit(measured, start, threshold, base) <= threshold:
             return 1.0
