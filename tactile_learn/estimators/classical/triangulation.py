@@ -439,13 +439,14 @@ class TriangulationEstimator(Estimator):
             return out
         return self.predict_checked(self.prepared_state("input_check_")(X))
 
-    def one_frame_run(self) -> Callable[[Any], np.ndarray | None]:
+    def one_frame_run(self) -> Callable[[Any], np.ndarray | None] | None:
         """``run(frames)``: :meth:`predict` of a plain single frame, ``None`` for anything else
         (another type, shape or dtype, or a code that is no key of the code -> load table: NaN,
-        inf, out of range, not whole, or any code of a calibrated film, whose readings are mapped).
-        :class:`~tactile_learn.frame_stream.FrameStream` tries it first on every frame."""
-        self.prepared_state("one_frame_")
-        return self.one_frame_run_
+        inf, out of range, not whole). :class:`~tactile_learn.frame_stream.FrameStream` tries it
+        first on every frame. ``None`` for a calibrated film (its readings are mapped first: no
+        code is a key), whose streams take the checked path."""
+        one: OneFrameTriangulation = self.prepared_state("one_frame_")
+        return self.one_frame_run_ if one.load_of_code else None
 
     def _one_frame_run(self) -> Callable[[Any], np.ndarray | None]:
         """:meth:`one_frame_run`, built in :meth:`prepare`: a frame of six whole codes that the

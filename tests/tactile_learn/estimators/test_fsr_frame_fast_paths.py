@@ -6,6 +6,7 @@ float64 on both paths."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -123,3 +124,13 @@ def test_whole_codes_read_the_packed_conductances() -> None:
     codes = np.random.default_rng(11).integers(0, fsr.Readout(SCENE.sensor.readout).full_scale, (200, 6))
     for row in codes.astype(float).tolist():
         assert check.measured_of_whole(row) == check.measured(row)
+
+
+def test_a_calibrated_films_stream_takes_the_checked_path() -> None:
+    film = dataclasses.replace(SCENE.sensor.film, gains=(1.05, 0.95, 1.02, 0.97, 1.04, 0.96), gain_spread=0.0)
+    scene = dataclasses.replace(SCENE, sensor=dataclasses.replace(SCENE.sensor, film=film))
+    est = TriangulationEstimator(scene).prepare()
+    assert est.one_frame_run() is None and FrameStream(est)._run_one is None
+    frames = _frames(40, 406)
+    single = np.concatenate([est.predict(frames[i : i + 1]) for i in range(len(frames))])
+    np.testing.assert_allclose(single, est.predict(frames), rtol=1e-6, atol=1e-5)
