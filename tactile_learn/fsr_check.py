@@ -97,8 +97,6 @@ def _start(points: np.ndarray) -> np.ndarray:
     return np.column_stack([points[:, 0], points[:, 1], _log_force(points)]).astype(np.float64)
 
 
-_FD_STEP = np.array([0.05, 0.05, 0.01])  # finite-difference steps: mm, mm, log N
-_SHIFTS = np.eye(3) * _FD_STEP  # one row per parameter
 _EYE3 = np.eye(3)
 _STEP_LO, _STEP_HI = np.array([-5.0, -5.0, -1.0]), np.array([5.0, 5.0, 1.0])  # a step's largest move
 
@@ -195,6 +193,68 @@ class OnePressCheck:
         sat = element.saturation_force_n
         return element.leak_conductance_us + element.conductance_us_per_n * (sat * np.tanh(load * gate / sat))
 
+    def jacobian(self, params: np.ndarray) -> np.ndarray:
+        """d conductance / d (x, y, log force) (B, 6, 3) of presses ``params`` (B, 3): the
+        derivative of :meth:`conductance` by hand (the refinement's Jacobian; it was three forward
+        differences, three forward models a step). Piecewise like the model: the bilinear look-up's
+        slope in the cell the point lies in (a grid node takes the cell it starts, as the forward
+        difference does), 0 along a clamp (the table's last cell, the force's clip, a load clamped
+        at 0), the far-field formula's derivative beyond the table, and no slope in ``x, y`` on a
+        sensor's centre (the distance's gradient is undefined there; the model is even in it)."""
+        config, _, _, tip = self._model
+        transfer, positions = self._path
+        flat, d0, d_step, d_top, a0, a_step, a_top, n_a, d_max, e_star = self._grid
+        element = config.element
+        log_force = params[:, 2]
+        force = np.exp(np.clip(log_force, -10.0, 6.0))
+        d_force = np.where((log_force >= -10.0) & (log_force <= 6.0), force, 0.0)[:, None]  # dF / d log F
+        offset = params[:, None, :2] - positions[None]  # (B, 6, 2)
+        distance = np.sqrt((offset**2).sum(axis=2))
+        radius = np.cbrt(3.0 * force * tip / (4.0 * e_star))[:, None]
+        di_free, ai_free = (distance - d0) / d_step, (radius - a0) / a_step
+        di, ai = np.clip(di_free, 0.0, d_top), np.clip(ai_free, 0.0, a_top)
+        i0, j0 = di.astype(np.int64), ai.astype(np.int64)
+        fi, fj = di - i0, ai - j0
+        gi, gj = 1 - fi, 1 - fj
+        k = i0 * n_a + j0
+        t00, t10, t01, t11 = flat[k], flat[k + n_a], flat[k + 1], flat[k + n_a + 1]
+        per_newton = t00 * gi * gj + t10 * fi * gj + t01 * gi * fj + t11 * fi * fj
+        # slopes of the bilinear look-up in distance and radius (0 where clamped)
+        d_per_newton_dd = np.where(di_free < d_top, ((t10 - t00) * gj + (t11 - t01) * fj) / d_step, 0.0)
+        d_per_newton_da = np.where(ai_free < a_top, ((t01 - t00) * gi + (t11 - t10) * fi) / a_step, 0.0)
+        far = distance > d_max
+        if far.any():  # the far-field point-load formula and its slope (k'(r) = -5 r k(r) / (r^2 + h^2))
+            area = np.pi * transfer.disc_radius_mm**2
+            slope = np.zeros_like(distance)
+            for gain, depth in (
+                (transfer.layer_gain, transfer.depth_mm),
+                (transfer.share_gain, transfer.share_length_mm),
+            ):
+                r2h2 = distance**2 + depth**2
+                slope -= gain * 5.0 * distance * (3.0 * depth**3 / (2.0 * np.pi * r2h2**2.5)) / r2h2
+            per_newton = np.where(far, area * transfer.point_kernel(distance), per_newton)
+            d_per_newton_dd = np.where(far, area * slope, d_per_newton_dd)
+            d_per_newton_da = np.where(far, 0.0, d_per_newton_da)
+        load_free = per_newton * force[:, None]
+        load = np.maximum(load_free, 0.0)
+        gate = special.expit((load - element.break_force_n) / element.break_width_n)
+        sat = element.saturation_force_n
+        sech2 = 1.0 - np.tanh(load * gate / sat) ** 2
+        # d g / d load: the law's tanh of the gated load (0 where the load is clamped at 0)
+        dg_dload = np.where(
+            load_free > 0.0,
+            element.conductance_us_per_n * sech2 * (gate + load * gate * (1.0 - gate) / element.break_width_n),
+            0.0,
+        )
+        with np.errstate(invalid="ignore", divide="ignore"):  # a press on a sensor's centre: no slope
+            unit = np.where(distance[..., None] > 0.0, offset / distance[..., None], 0.0)
+        # d load / d log F = d F / d log F * (per_newton + d per_newton / d a * a / 3): a = cbrt(c F)
+        d_load_dlogf = d_force * (per_newton + d_per_newton_da * radius / 3.0)
+        out = np.empty((*distance.shape, 3))
+        out[..., :2] = (dg_dload * force[:, None] * d_per_newton_dd)[..., None] * unit
+        out[..., 2] = dg_dload * d_load_dlogf
+        return out
+
     def residual(self, readings: np.ndarray, estimate: np.ndarray) -> np.ndarray:
         """Relative conductance misfit (B,) of the best single press near ``estimate`` (B, >= 3)
         for nominal-film ``readings`` (B, 6), or near the sensors' conductance-weighted centroid
@@ -235,9 +295,7 @@ class OnePressCheck:
             if not live.size:
                 break
             p, b, c, d, y = params[live], base[live], cost[live], damping[live], measured[live]
-            shifted = (p[None] + _SHIFTS[:, None, :]).reshape(-1, 3)
-            jac = (self.conductance(shifted).reshape(3, len(p), -1) - b[None]) / _FD_STEP[:, None, None]
-            jac = jac.transpose(1, 2, 0)  # (B, 6, 3)
+            jac = self.jacobian(p)  # (B, 6, 3)
             jt = jac.transpose(0, 2, 1)
             jtj = jt @ jac
             scale = np.trace(jtj, axis1=1, axis2=2)[:, None, None] + 1e-12

@@ -6,8 +6,8 @@ calls, and a Levenberg-Marquardt step three of them. A light press that needs re
 ~1-2 ms per frame. :class:`OneFrameCheck` does the same arithmetic on Python floats with the
 film's tables as lists, built once per check: the same forward model (distance, Hertz radius,
 bilinear lookup of the load path, far-field point-load formula, the FSR law), the same
-finite-difference Jacobian, damping schedule, step limits and early stop, so the verdicts equal
-the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination instead of LAPACK).
+analytic Jacobian, damping schedule, step limits and early stop, so the verdicts equal the batch
+path's (the misfits agree to rounding: a 3 x 3 solve by elimination instead of LAPACK).
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ if TYPE_CHECKING:
 
 __all__ = ["OneFrameCheck", "expit"]
 
-_FD_STEP = (0.05, 0.05, 0.01)  # as fsr_check._FD_STEP: mm, mm, log N
 _STEP_LIMIT = (5.0, 5.0, 1.0)  # as fsr_check._STEP_LO/_STEP_HI: a step's largest move
 _FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force at 1e-3 (N)
 
@@ -176,6 +175,62 @@ class OneFrameCheck:
                 out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
+    def jacobian_at(
+        self, x: float, y: float, log_force: float, column: tuple[float, float, int, float]
+    ) -> list[tuple[float, float, float]]:
+        """d conductance / d (x, y, log force) of the six sensors at a press (``column``: its
+        :meth:`column`): :meth:`OnePressCheck.jacobian` on floats (the same derivatives; the tests
+        compare them)."""
+        tanh, sqrt = math.tanh, math.sqrt
+        positions, columns, dd, d_top, d_max, _, per_n, brk, width, sat = self._constants
+        force, radius, j0, fj = column
+        d_force = force if -10.0 <= log_force <= 6.0 else 0.0  # d F / d log F (0 along the clip)
+        a_free = radius / self.da < self.a_top  # else the radius is clamped to the last column: no slope
+        near, far = columns[j0], columns[j0 + 1]
+        gj = 1.0 - fj
+        out = []
+        for px, py in positions:
+            dx, dy = x - px, y - py
+            d = sqrt(dx * dx + dy * dy)
+            if d > d_max:
+                per_newton, slope_d = self._far_field(d)
+                slope_a = 0.0
+            else:
+                di = d / dd
+                d_free = di < d_top
+                if not d_free:
+                    di = d_top
+                i0 = int(di)
+                fi = di % 1.0
+                gi = 1.0 - fi
+                t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
+                per_newton = t00 * gi * gj + t10 * fi * gj + t01 * gi * fj + t11 * fi * fj
+                slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd if d_free else 0.0
+                slope_a = ((t01 - t00) * gi + (t11 - t10) * fi) / self.da if a_free else 0.0
+            load = per_newton * force
+            if load > 0.0:
+                z = (load - brk) / width
+                gate = 1.0 if z > 37.0 else 1.0 / (1.0 + math.exp(-z)) if z > -709.0 else 0.0
+                t = tanh(load * gate / sat)
+                dg_dload = per_n * (1.0 - t * t) * (gate + load * gate * (1.0 - gate) / width)
+                along = dg_dload * force * slope_d / d if d > 0.0 else 0.0  # no slope on a sensor's centre
+                out.append((along * dx, along * dy, dg_dload * d_force * (per_newton + slope_a * radius / 3.0)))
+            else:
+                out.append((0.0, 0.0, 0.0))
+        return out
+
+    def _far_field(self, d: float) -> tuple[float, float]:
+        """The far-field point-load formula (disc load per newton) and its slope in distance."""
+        transfer = self.transfer
+        area = math.pi * transfer.disc_radius_mm**2
+        value = slope = 0.0
+        for gain, depth in ((transfer.layer_gain, transfer.depth_mm), (transfer.share_gain, transfer.share_length_mm)):
+            r2h2 = d * d + depth * depth
+            kernel = 3.0 * depth**3 / (2.0 * math.pi * r2h2**2.5)
+            value += gain * kernel
+            slope -= gain * 5.0 * d * kernel / r2h2
+        return area * value, area * slope
+
     def measured(self, codes: list[float]) -> list[float]:
         """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
         by_code = self.conductance_of_code
@@ -222,10 +277,9 @@ class OneFrameCheck:
         """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
         when the caller has it).
 
-        A step's finite differences in ``x`` and ``y`` share the force's part of the model
-        (:meth:`column`), and the normal equations are summed in one pass over the sensors, in
-        the order the batch path's sums take (the same numbers as three :meth:`conductance` calls
-        and six sums: the tests compare them)."""
+        The normal equations of the analytic Jacobian (:meth:`jacobian_at`) are summed in one
+        pass over the sensors, in the order the batch path's sums take, and kept after a failed
+        step (the point did not move: only the damping changes)."""
         n, scale_m = len(measured), self._scale(measured)
         conductance_at, column_of = self.conductance_at, self.column
         x, y, f = params
@@ -234,21 +288,21 @@ class OneFrameCheck:
             base = conductance_at(x, y, column)
         cost = self._cost(measured, base)
         damping = 1e-3
-        hx, hy, hf = _FD_STEP
+        jacobian_at = self.jacobian_at
         lx, ly, lf = _STEP_LIMIT
+        a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
+        moved = True  # the point moved since the normal equations were summed (a failed step keeps them)
         for _ in range(self.steps):
             if math.sqrt(cost / n) / scale_m <= stop_below:
                 break
-            # Jacobian columns: d conductance / d parameter, by forward differences
-            at_x = conductance_at(x + hx, y, column)
-            at_y = conductance_at(x, y + hy, column)
-            at_f = conductance_at(x, y, column_of(f + hf))
-            a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
-            for m, b, sx, sy, sf in zip(measured, base, at_x, at_y, at_f, strict=True):
-                jx, jy, jf, resid = (sx - b) / hx, (sy - b) / hy, (sf - b) / hf, m - b
-                a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
-                a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
-                r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
+            if moved:  # the normal equations of the analytic Jacobian, summed over the sensors in order
+                a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
+                for m, b, (jx, jy, jf) in zip(measured, base, jacobian_at(x, y, f, column), strict=True):
+                    resid = m - b
+                    a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
+                    a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
+                    r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
+                moved = False
             ridge = damping * (a00 + a11 + a22 + 1e-12)
             sx, sy, sf = _solve_spd3(a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge, r0, r1, r2)
             cx = x + (-lx if sx < -lx else lx if sx > lx else sx)
@@ -259,6 +313,7 @@ class OneFrameCheck:
             trial_cost = self._cost(measured, trial)
             if trial_cost < cost:
                 x, y, f, column, base, cost, damping = cx, cy, cf, trial_column, trial, trial_cost, damping / 3.0
+                moved = True
             else:
                 damping *= 5.0
         return math.sqrt(cost / n) / scale_m
