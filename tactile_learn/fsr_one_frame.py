@@ -175,21 +175,32 @@ class OneFrameCheck:
                 out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
-    def jacobian_at(
-        self, x: float, y: float, log_force: float, column: tuple[float, float, int, float]
-    ) -> list[tuple[float, float, float]]:
-        """d conductance / d (x, y, log force) of the six sensors at a press (``column``: its
-        :meth:`column`): :meth:`OnePressCheck.jacobian` on floats (the same derivatives; the tests
-        compare them)."""
-        tanh, sqrt = math.tanh, math.sqrt
+    def normal_equations(
+        self,
+        x: float,
+        y: float,
+        log_force: float,
+        column: tuple[float, float, int, float],
+        measured: list[float],
+        base: list[float],
+    ) -> tuple[float, float, float, float, float, float, float, float, float]:
+        """The Levenberg-Marquardt step's sums at a press (``column``: its :meth:`column`,
+        ``base``: its model conductances): ``J^T J`` (upper triangle, row by row) and ``J^T r``
+        (``r = measured - base``) for the analytic Jacobian ``J`` of the six conductances in
+        ``(x, y, log force)``: :meth:`OnePressCheck.jacobian`'s derivatives on floats, summed over
+        the sensors in order as the batch path's products (the tests compare them). A sensor
+        whose load is clamped at 0 has no slope and adds nothing."""
+        tanh, sqrt, exp = math.tanh, math.sqrt, math.exp
         positions, columns, dd, d_top, d_max, _, per_n, brk, width, sat = self._constants
         force, radius, j0, fj = column
         d_force = force if -10.0 <= log_force <= 6.0 else 0.0  # d F / d log F (0 along the clip)
-        a_free = radius / self.da < self.a_top  # else the radius is clamped to the last column: no slope
+        # d load / d log F = d F / d log F * (per_newton + d per_newton / d a * a / 3), a = cbrt(c F);
+        # no slope in the radius where it is clamped to the table's last column
+        radius_part = radius / 3.0 / self.da if radius / self.da < self.a_top else 0.0
         near, far = columns[j0], columns[j0 + 1]
         gj = 1.0 - fj
-        out = []
-        for px, py in positions:
+        a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
+        for (px, py), m, b in zip(positions, measured, base, strict=True):
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:
@@ -197,27 +208,34 @@ class OneFrameCheck:
                 slope_a = 0.0
             else:
                 di = d / dd
-                d_free = di < d_top
-                if not d_free:
-                    di = d_top
-                i0 = int(di)
-                fi = di % 1.0
-                gi = 1.0 - fi
-                t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
+                if di < d_top:
+                    i0 = int(di)
+                    fi = di % 1.0
+                    gi = 1.0 - fi
+                    t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
+                    slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd
+                else:  # clamped to the table's last row: no slope in distance
+                    i0 = int(d_top)
+                    fi = d_top % 1.0
+                    gi = 1.0 - fi
+                    t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
+                    slope_d = 0.0
                 per_newton = t00 * gi * gj + t10 * fi * gj + t01 * gi * fj + t11 * fi * fj
-                slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd if d_free else 0.0
-                slope_a = ((t01 - t00) * gi + (t11 - t10) * fi) / self.da if a_free else 0.0
+                slope_a = (t01 - t00) * gi + (t11 - t10) * fi
             load = per_newton * force
             if load > 0.0:
                 z = (load - brk) / width
-                gate = 1.0 if z > 37.0 else 1.0 / (1.0 + math.exp(-z)) if z > -709.0 else 0.0
+                gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
                 t = tanh(load * gate / sat)
                 dg_dload = per_n * (1.0 - t * t) * (gate + load * gate * (1.0 - gate) / width)
-                along = dg_dload * force * slope_d / d if d > 0.0 else 0.0  # no slope on a sensor's centre
-                out.append((along * dx, along * dy, dg_dload * d_force * (per_newton + slope_a * radius / 3.0)))
-            else:
-                out.append((0.0, 0.0, 0.0))
-        return out
+                along = dg_dload * force * slope_d / d if d > 0.0 else 0.0  # no direction on a sensor's centre
+                jx, jy = along * dx, along * dy
+                jf = dg_dload * d_force * (per_newton + slope_a * radius_part)
+                resid = m - b
+                a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
+                a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
+                r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
+        return a00, a01, a02, a11, a12, a22, r0, r1, r2
 
     def _far_field(self, d: float) -> tuple[float, float]:
         """The far-field point-load formula (disc load per newton) and its slope in distance."""
@@ -277,8 +295,8 @@ class OneFrameCheck:
         """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
         when the caller has it).
 
-        The normal equations of the analytic Jacobian (:meth:`jacobian_at`) are summed in one
-        pass over the sensors, in the order the batch path's sums take, and kept after a failed
+        The normal equations of the analytic Jacobian (:meth:`normal_equations`), summed in one
+        pass over the sensors in the order the batch path's sums take, are kept after a failed
         step (the point did not move: only the damping changes)."""
         n, scale_m = len(measured), self._scale(measured)
         conductance_at, column_of = self.conductance_at, self.column
@@ -288,20 +306,15 @@ class OneFrameCheck:
             base = conductance_at(x, y, column)
         cost = self._cost(measured, base)
         damping = 1e-3
-        jacobian_at = self.jacobian_at
+        normal_equations = self.normal_equations
         lx, ly, lf = _STEP_LIMIT
         a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
         moved = True  # the point moved since the normal equations were summed (a failed step keeps them)
         for _ in range(self.steps):
             if math.sqrt(cost / n) / scale_m <= stop_below:
                 break
-            if moved:  # the normal equations of the analytic Jacobian, summed over the sensors in order
-                a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
-                for m, b, (jx, jy, jf) in zip(measured, base, jacobian_at(x, y, f, column), strict=True):
-                    resid = m - b
-                    a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
-                    a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
-                    r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
+            if moved:
+                a00, a01, a02, a11, a12, a22, r0, r1, r2 = normal_equations(x, y, f, column, measured, base)
                 moved = False
             ridge = damping * (a00 + a11 + a22 + 1e-12)
             sx, sy, sf = _solve_spd3(a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge, r0, r1, r2)
