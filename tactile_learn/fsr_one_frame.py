@@ -175,23 +175,18 @@ class OneFrameCheck:
                 out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
-    def normal_equations(
-        self,
-        x: float,
-        y: float,
-        log_force: float,
-        column: tuple[float, float, int, float],
-        measured: list[float],
-        base: list[float],
-    ) -> tuple[float, float, float, float, float, float, float, float, float]:
-        """The Levenberg-Marquardt step's sums at a press (``column``: its :meth:`column`,
-        ``base``: its model conductances): ``J^T J`` (upper triangle, row by row) and ``J^T r``
-        (``r = measured - base``) for the analytic Jacobian ``J`` of the six conductances in
-        ``(x, y, log force)``: :meth:`OnePressCheck.jacobian`'s derivatives on floats, summed over
-        the sensors in order as the batch path's products (the tests compare them). A sensor
-        whose load is clamped at 0 has no slope and adds nothing."""
+    def model_and_normal_equations(
+        self, x: float, y: float, log_force: float, column: tuple[float, float, int, float], measured: list[float]
+    ) -> tuple[list[float], tuple[float, float, float, float, float, float, float, float, float]]:
+        """A press's model conductances (:meth:`conductance_at`'s, bit for bit) and the
+        Levenberg-Marquardt step's sums there (``column``: its :meth:`column`): ``J^T J`` (upper
+        triangle, row by row) and ``J^T r`` (``r = measured - model``) for the analytic Jacobian
+        ``J`` of the six conductances in ``(x, y, log force)``: :meth:`OnePressCheck.jacobian`'s
+        derivatives on floats, summed over the sensors in order as the batch path's products (the
+        tests compare them). One pass: the model's distances, look-ups and gate serve both. A
+        sensor whose load is clamped at 0 has no slope and adds nothing to the sums."""
         tanh, sqrt, exp = math.tanh, math.sqrt, math.exp
-        positions, columns, dd, d_top, d_max, _, per_n, brk, width, sat = self._constants
+        positions, columns, dd, d_top, d_max, leak, per_n, brk, width, sat = self._constants
         force, radius, j0, fj = column
         d_force = force if -10.0 <= log_force <= 6.0 else 0.0  # d F / d log F (0 along the clip)
         # d load / d log F = d F / d log F * (per_newton + d per_newton / d a * a / 3), a = cbrt(c F);
@@ -199,55 +194,54 @@ class OneFrameCheck:
         radius_part = radius / 3.0 / self.da if radius / self.da < self.a_top else 0.0
         near, far = columns[j0], columns[j0 + 1]
         gj = 1.0 - fj
+        model = []
         a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
-        for (px, py), m, b in zip(positions, measured, base, strict=True):
+        for (px, py), m in zip(positions, measured, strict=True):
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:
-                per_newton, slope_d = self._far_field(d)
-                slope_a = 0.0
+                per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))  # as conductance_at
+                slope_d, slope_a = self._far_field_slope(d), 0.0
             else:
                 di = d / dd
-                if di < d_top:
-                    i0 = int(di)
-                    fi = di % 1.0
-                    gi = 1.0 - fi
-                    t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
-                    slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd
-                else:  # clamped to the table's last row: no slope in distance
-                    i0 = int(d_top)
-                    fi = d_top % 1.0
-                    gi = 1.0 - fi
-                    t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
-                    slope_d = 0.0
+                d_free = di < d_top  # else clamped to the table's last row: no slope in distance
+                if not d_free:
+                    di = d_top
+                i0 = int(di)
+                fi = di % 1.0
+                gi = 1.0 - fi
+                t00, t10, t01, t11 = near[i0], near[i0 + 1], far[i0], far[i0 + 1]
                 per_newton = t00 * gi * gj + t10 * fi * gj + t01 * gi * fj + t11 * fi * fj
+                slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd if d_free else 0.0
                 slope_a = (t01 - t00) * gi + (t11 - t10) * fi
             load = per_newton * force
+            if load < 0.0:
+                load = 0.0
+            z = (load - brk) / width
+            gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
+            t = tanh(load * gate / sat)
+            g = leak + per_n * (sat * t)
+            model.append(g)
             if load > 0.0:
-                z = (load - brk) / width
-                gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
-                t = tanh(load * gate / sat)
                 dg_dload = per_n * (1.0 - t * t) * (gate + load * gate * (1.0 - gate) / width)
                 along = dg_dload * force * slope_d / d if d > 0.0 else 0.0  # no direction on a sensor's centre
                 jx, jy = along * dx, along * dy
                 jf = dg_dload * d_force * (per_newton + slope_a * radius_part)
-                resid = m - b
+                resid = m - g
                 a00, a01, a02 = a00 + jx * jx, a01 + jx * jy, a02 + jx * jf
                 a11, a12, a22 = a11 + jy * jy, a12 + jy * jf, a22 + jf * jf
                 r0, r1, r2 = r0 + jx * resid, r1 + jy * resid, r2 + jf * resid
-        return a00, a01, a02, a11, a12, a22, r0, r1, r2
+        return model, (a00, a01, a02, a11, a12, a22, r0, r1, r2)
 
-    def _far_field(self, d: float) -> tuple[float, float]:
-        """The far-field point-load formula (disc load per newton) and its slope in distance."""
+    def _far_field_slope(self, d: float) -> float:
+        """The far-field point-load formula's slope in distance (disc load per newton per mm):
+        ``k'(r) = -5 r k(r) / (r^2 + h^2)`` for each of its two Boussinesq terms."""
         transfer = self.transfer
-        area = math.pi * transfer.disc_radius_mm**2
-        value = slope = 0.0
+        slope = 0.0
         for gain, depth in ((transfer.layer_gain, transfer.depth_mm), (transfer.share_gain, transfer.share_length_mm)):
             r2h2 = d * d + depth * depth
-            kernel = 3.0 * depth**3 / (2.0 * math.pi * r2h2**2.5)
-            value += gain * kernel
-            slope -= gain * 5.0 * d * kernel / r2h2
-        return area * value, area * slope
+            slope -= gain * 5.0 * d * (3.0 * depth**3 / (2.0 * math.pi * r2h2**2.5)) / r2h2
+        return math.pi * transfer.disc_radius_mm**2 * slope
 
     def measured(self, codes: list[float]) -> list[float]:
         """Conductances (uS) of ADC codes (the readout inverse; whole codes from its table)."""
@@ -290,32 +284,36 @@ class OneFrameCheck:
     # ---- the check ------------------------------------------------------------------------------
 
     def refined_misfit(
-        self, measured: list[float], params: list[float], stop_below: float, base: list[float] | None = None
+        self,
+        measured: list[float],
+        params: list[float],
+        stop_below: float,
+        base: list[float] | None = None,
+        sums: tuple[float, ...] | None = None,
     ) -> float:
         """:meth:`OnePressCheck._refined_misfit` for one frame (``base``: the model at ``params``
-        when the caller has it).
+        and ``sums`` its normal equations, when the caller has them).
 
-        The normal equations of the analytic Jacobian (:meth:`normal_equations`), summed in one
-        pass over the sensors in the order the batch path's sums take, are kept after a failed
-        step (the point did not move: only the damping changes)."""
+        The normal equations of the analytic Jacobian (:meth:`model_and_normal_equations`), summed
+        in one pass over the sensors in the order the batch path's sums take, are kept after a
+        failed step (the point did not move: only the damping changes)."""
         n, scale_m = len(measured), self._scale(measured)
-        conductance_at, column_of = self.conductance_at, self.column
+        conductance_at, column_of, normal_equations = self.conductance_at, self.column, self.model_and_normal_equations
         x, y, f = params
         column = column_of(f)
         if base is None:
-            base = conductance_at(x, y, column)
+            base, sums = normal_equations(x, y, f, column, measured)
         cost = self._cost(measured, base)
         damping = 1e-3
-        normal_equations = self.normal_equations
         lx, ly, lf = _STEP_LIMIT
-        a00 = a01 = a02 = a11 = a12 = a22 = r0 = r1 = r2 = 0.0
-        moved = True  # the point moved since the normal equations were summed (a failed step keeps them)
+        moved = sums is None  # the normal equations at the point are still to be summed
         for _ in range(self.steps):
             if math.sqrt(cost / n) / scale_m <= stop_below:
                 break
-            if moved:
-                a00, a01, a02, a11, a12, a22, r0, r1, r2 = normal_equations(x, y, f, column, measured, base)
+            if moved or sums is None:
+                _, sums = normal_equations(x, y, f, column, measured)
                 moved = False
+            a00, a01, a02, a11, a12, a22, r0, r1, r2 = sums
             ridge = damping * (a00 + a11 + a22 + 1e-12)
             sx, sy, sf = _solve_spd3(a00 + ridge, a01, a02, a11 + ridge, a12, a22 + ridge, r0, r1, r2)
             cx = x + (-lx if sx < -lx else lx if sx > lx else sx)
@@ -358,10 +356,14 @@ class OneFrameCheck:
             if sqrt(cost(measured, at_screen) / 6) / scale <= threshold:
                 return 1.0
         start = [x, y, log(floor if floor > force else force)]
-        base = conductance_at(x, y, column(start[2]))
+        sums = None
+        if screen is None:  # an estimate that mostly passes as it is (the fitted kernel's)
+            base = conductance_at(x, y, column(start[2]))
+        else:  # the half-space kernel's, which hardly ever does: the refinement's sums at once
+            base, sums = self.model_and_normal_equations(x, y, start[2], column(start[2]), measured)
         if sqrt(cost(measured, base) / 6) / scale <= threshold:
             return 1.0
-        if self.refined_misfit(measured, start, threshold, base) <= threshold:
+        if self.refined_misfit(measured, start, threshold, base, sums) <= threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
         total = sum(weights)

@@ -65,8 +65,8 @@ def test_the_jacobian_is_zero_along_the_clamps_and_finite_on_a_sensor(check: One
 
 
 def test_one_frame_normal_equations_equal_the_batch_ones(check: OnePressCheck) -> None:
-    """The single-frame path sums ``J^T J`` and ``J^T r`` without forming ``J``: the same
-    numbers as the batch path's Jacobian and products."""
+    """The single-frame path sums ``J^T J`` and ``J^T r`` without forming ``J``, with the model
+    in the same pass: the same numbers as the batch path's Jacobian and products."""
     one = check.one_frame
     params = np.concatenate([_presses(500, seed=12), [[150.0, 20.0, 1.0], [0.0, 0.0, 6.5], [2.0, 1.0, -11.0]]])
     measured = check.conductance(params + np.array([0.7, -0.4, 0.2]))
@@ -75,13 +75,14 @@ def test_one_frame_normal_equations_equal_the_batch_ones(check: OnePressCheck) -
     jtj = np.einsum("bsi,bsj->bij", jac, jac)
     upper = jtj[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
     want = np.concatenate([upper, np.einsum("bsi,bs->bi", jac, measured - base)], axis=1)
-    got = np.array(
-        [
-            one.normal_equations(x, y, f, one.column(f), m, b)
-            for (x, y, f), m, b in zip(params.tolist(), measured.tolist(), base.tolist(), strict=True)
-        ]
-    )
-    np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-12 * np.abs(want).max())
+    models, sums = [], []
+    for (x, y, f), m in zip(params.tolist(), measured.tolist(), strict=True):
+        model, normal = one.model_and_normal_equations(x, y, f, one.column(f), m)
+        assert model == one.conductance(x, y, f)  # the model it sums at, bit for bit
+        models.append(model)
+        sums.append(normal)
+    np.testing.assert_allclose(models, base, rtol=1e-13)  # (the one-frame Hertz radius: ** (1 / 3), not cbrt)
+    np.testing.assert_allclose(sums, want, rtol=1e-11, atol=1e-12 * np.abs(want).max())
 
 
 def test_the_refinement_reaches_a_genuine_press(check: OnePressCheck) -> None:
