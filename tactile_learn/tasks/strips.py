@@ -131,6 +131,7 @@ class StripsTask(Task):
         "large",
         "corrected",
         "wide",
+        "wide_consistent",
         "deep",
         "small_law",
         "tiny_law",
