@@ -255,8 +255,12 @@ class DeployedStripNet(nn.Module):
             gain = 1.0 - torch.pow(1.0 + stress / self.p0_forward, -self.exponent_forward)
             slope = (1.0 - gain).pow((self.exponent_forward + 1.0) / self.exponent_forward)
         model = gain @ self.sums
-        sides = ((torch.stack([loads, model], dim=1) @ self.sums_t) * slope.unsqueeze(1)) @ self.stress_t
-        ratio = ((sides[:, 0] + RATIO_EPS) / (sides[:, 1] + RATIO_EPS)).clamp(max=RATIO_CAP)
+        # measured and model loads stacked on a leading axis of 2 (one Concat, one Split: fewer
+        # nodes than a stack on axis 1 and two gathers); the slope broadcasts over that axis
+        both = (torch.cat([loads, model], dim=0) @ self.sums_t).reshape(2, -1, self.sums_t.shape[1])
+        sides = (both * slope) @ self.stress_t + RATIO_EPS  # (2, B, N*M): J^T L and J^T L_model
+        numerator, denominator = sides.chunk(2, dim=0)
+        ratio = (numerator / denominator).clamp(max=RATIO_CAP)  # (1, B, N*M)
         residual = torch.linalg.vector_norm((model - loads) * self.noise_weights, dim=1)
         balance = (loads @ self.diff_weights).abs() / (loads @ self.half_weights + self.balance_floor)
         return (flat * ratio).reshape(-1, self.n_rows, self.n_cols), residual, balance

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -17,6 +21,8 @@ from tactile_learn.estimators.classical.projection import ProjectionEstimator
 from tactile_learn.nets.strips_consistent import RATIO_CAP, ConsistencyStep
 from tactile_learn.nets.strips_general import GeneralStripNet, GeneralStripNetWithResidual
 from tactile_learn.strips_consistency import StripConsistency
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
 
 
 @pytest.fixture(scope="module")
@@ -70,17 +76,24 @@ def test_the_step_brings_a_wrong_map_closer_to_its_readings(frames: dict[str, np
     assert np.all(stepped >= 0.0) and np.isfinite(stepped).all()
 
 
+def _random_wide(seed: int) -> tuple[dict[str, Any], GeneralStripNet]:
+    """The shipped default's file and a size-wide network with its statistics and random weights (the
+    head too, so that the map is not the classical estimate)."""
+    shipped = load_weights("models/strips16.pt")
+    torch.manual_seed(seed)
+    wide = GeneralStripNet(load_scene("strips16"), shipped["stats"], "wide")
+    with torch.no_grad():
+        wide.head.weight.normal_(0.0, 0.1)
+    return shipped, wide
+
+
 def test_wide_weights_load_into_the_consistent_size_and_export_checked(frames: dict[str, np.ndarray]) -> None:
     """The step has no weights (its buffers are not saved); the exported form takes the same step
     and reports the residual of the map before it, as the training module does."""
     from tactile_learn.nets.strips_deploy import deploy
 
     scene = load_scene("strips16")
-    shipped = load_weights("models/strips16.pt")
-    torch.manual_seed(3)
-    wide = GeneralStripNet(scene, shipped["stats"], "wide")
-    with torch.no_grad():
-        wide.head.weight.normal_(0.0, 0.1)
+    shipped, wide = _random_wide(3)
     net = GeneralStripNet(scene, shipped["stats"], "wide_consistent")
     net.load_state_dict(wide.state_dict())  # strict
     assert set(net.state_dict()) == set(wide.state_dict())
@@ -98,3 +111,31 @@ def test_wide_weights_load_into_the_consistent_size_and_export_checked(frames: d
     deployed = deploy(net, scene, readings)  # refuses a difference from the training module
     with torch.inference_mode():
         np.testing.assert_allclose(deployed(readings)[0].numpy(), stepped.numpy(), rtol=1e-4, atol=1e-3)
+
+
+def test_strips_grow_carries_wide_weights_to_the_consistent_size(tmp_path: Path) -> None:
+    import strips_grow
+
+    from tactile_learn.checkpoints import build_net, save_torch
+
+    scene = load_scene("strips16")
+    shipped, wide = _random_wide(5)
+    source, out = tmp_path / "wide.pt", tmp_path / "consistent.pt"
+    save_torch(
+        source,
+        {
+            "task": "strips",
+            "size": "wide",
+            "scene": scene.to_dict(),
+            "stats": shipped["stats"],
+            "state_dict": wide.state_dict(),
+        },
+    )
+    assert strips_grow.main([str(source), "--size", "wide_consistent", "--out", str(out)]) == 0
+    grown = load_weights(out)
+    assert grown["size"] == "wide_consistent"
+    net = build_net(grown, scene).eval()  # strict load
+    readings = torch.from_numpy(simulate_shard(scene, 8, 0, 16)["readings"])
+    with torch.inference_mode():
+        want = net.consistency(wide.eval()(readings), net.loads(readings))
+        np.testing.assert_allclose(net(readings).numpy(), want.numpy(), rtol=1e-5, atol=1e-5)
