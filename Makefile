@@ -25,8 +25,10 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check $(LINTED)
 	$(BIN)/mypy
 
+# One BLAS/OpenMP thread: the suite's arrays are tiny, and threaded BLAS stalls when the cores are shared
+# (one test file: 150 s threaded vs 12 s single-threaded under load; the same CPU time on a quiet machine).
 test: lint
-	$(BIN)/python -m pytest -q
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/python -m pytest -q
 
 # Longer property-based profile: many more hypothesis examples per test, with a summary.
 stress: $(STAMP)

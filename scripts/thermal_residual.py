@@ -4,14 +4,15 @@
 
 For the labelled session: ``calibrate`` once per variant (per-touch nuisance terms: none; the
 object's flux; the object's flux and the heater's steps; the contact's precursor; the approach
-through the closing air gap; and the joint refinement in noise units, ``weighted``), and the
+through the closing air gap; contact events, steps of the contact conductance at the residual's
+kinks; and the joint refinement in noise units, ``weighted``), and the
 residual in mK and in noise sigma (both noise definitions: see
 ``tactile_learn.calibration.thermal_calibration._residual_summary``), with one contact for every
 touch and with each touch's own contact, overall, per channel and per condition of
 ``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time. The
 residual's kinks (slope changes at a few instants; see ``tactile_learn.calibration.thermal_kinks``)
-are printed per channel. The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
-``../shared/data/thermal-robot``.
+and its RMS per time window after the onset are printed per channel. The data: ``--data``, else
+``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot``.
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "contact_precursor+weighted": (("contact_precursor",), True),
     "approach": (("approach",), False),
     "approach+weighted": (("approach",), True),
+    "contact_events": (("contact_events",), False),
+    "contact_events+weighted": (("contact_events",), True),
 }
 
 
@@ -86,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
                 "not_identified": report["not_identified"],
                 "parameters": {k: v["value"] for k, v in report["parameters"].items()},
                 "touches": report["touches"],
+                "contact_events": report.get("contact_events"),
             }
             res = report["residual"]
             print(
@@ -97,6 +101,16 @@ def main(argv: list[str] | None = None) -> int:
                 f"{res['shared_contact']['passive']['rms_k'] * 1e3:.2f} mK",
                 flush=True,
             )
+            for ch in report["channels_fitted"]:
+                windows = ", ".join(
+                    f"[{'-' if w['from_s'] is None else w['from_s']}, {'-' if w['to_s'] is None else w['to_s']}) "
+                    f"{w['rms_k'] * 1e3:.1f} mK {100 * w['share_of_squares']:.0f} %"
+                    for w in res["windows"][ch]
+                )
+                print(f"  {ch} by time after the onset: {windows}", flush=True)
+            if report.get("contact_events"):
+                ev = report["contact_events"]
+                print(f"  contact events: {ev['count']}, factors at a bound: {ev['factors_at_bound']}", flush=True)
             for ch in report["channels_fitted"]:
                 k = res["kinks"][ch]
                 print(

@@ -162,6 +162,72 @@ def reference_channel(
     return np.asarray(out) + drift_k_s * sum(lags)  # relative to the reading at the onset
 
 
+def varying_contact_reading(
+    t: np.ndarray,
+    h_of_t: object,
+    *,
+    heat_capacity: float,
+    loss: float,
+    k_w_mk: float,
+    diffusivity_m2_s: float,
+    lags: tuple[float, ...],
+    start_s: float,
+    cells: int = 260,
+    power_of_t: object = None,
+    v0: float = 1.0,
+) -> np.ndarray:
+    """Reading deviation (``v0``: the body's start above the object) at times ``t`` for an interface
+    conductance ``h_of_t(time)`` (0 before the contact; the approach's gap, a contact whose
+    conductance steps) from ``start_s`` on; a slab object on a graded grid. ``power_of_t(time)``
+    (W/m^2): a heater power into the body (none by default)."""
+    span = float(t.max()) - start_s
+    first = np.sqrt(diffusivity_m2_s * 1e-3) / 10
+    length = 12 * np.sqrt(diffusivity_m2_s * span)
+    widths = first * ((length / first) ** (1.0 / cells)) ** np.arange(cells)
+    faces = np.concatenate([[0.0], np.cumsum(widths)])
+    centres = 0.5 * (faces[1:] + faces[:-1])
+    cap = k_w_mk / diffusivity_m2_s * widths
+    n = 1 + cells + len(lags)
+    base = np.zeros((n, n))
+    links = k_w_mk / np.diff(centres)
+    add_conduction_chain(base, 1, links, cap)
+    base[cells, cells] -= k_w_mk / (faces[-1] - centres[-1]) / cap[-1]
+    base[0, 0] = -loss / heat_capacity
+    prev = add_lag_chain(base, 1 + cells, lags)
+    # the interface: flux g (1 + u - theta_1) out of the body into the first cell, g the gap's
+    # conductance in series with half the first cell
+    couple = np.zeros((n, n))
+    couple[0, 0], couple[0, 1] = -1.0 / heat_capacity, 1.0 / heat_capacity
+    couple[1, 0], couple[1, 1] = 1.0 / cap[0], -1.0 / cap[0]
+    drive = np.zeros(n)
+    drive[0], drive[1] = -v0 / heat_capacity, v0 / cap[0]
+    base_s, couple_s = sparse.csr_matrix(base), sparse.csr_matrix(couple)
+
+    def g(time: float) -> float:
+        h = float(h_of_t(time))  # type: ignore[operator]
+        return 0.0 if h <= 0 else 1.0 / (1.0 / h + widths[0] / (2 * k_w_mk))
+
+    heat = np.zeros(n)
+    heat[0] = 1.0 / heat_capacity
+
+    def power(time: float) -> float:
+        return 0.0 if power_of_t is None else float(power_of_t(time))  # type: ignore[operator]
+
+    sol = integrate.solve_ivp(
+        lambda time, y: base_s @ y + g(time) * (couple_s @ y + drive) + power(time) * heat,
+        (start_s, float(t.max())),
+        np.zeros(n),
+        method="Radau",
+        t_eval=t,
+        rtol=1e-8,
+        atol=1e-11,
+        jac=lambda time, y: base_s + g(time) * couple_s,
+        max_step=0.01,
+    )
+    assert sol.success, sol.message
+    return np.asarray(sol.y[prev])
+
+
 def numerical_excess(
     t: np.ndarray,
     heat_capacity: float,

@@ -33,8 +33,12 @@ parameters at once (each moves its own touch's rows only). Optional per-touch nu
 (``nuisance``, linear, closed forms in :func:`synth.sensors.thermal.dynamics.nuisance_terms`): the
 object's flux (its temperature not uniform with depth), the heater's power steps, and a contact
 precursor (part of the contact arriving over the ``PRECURSOR_S`` before it, one amplitude per
-channel). Optional too (``noise_weighted``): the joint refinement in units of each sample's noise
-s.d. (the maximum-likelihood fit in the unit the residual is reported in) with weak linear priors.
+channel). Optional and nonlinear: the approach through the closing air gap (two shared parameters)
+and contact events (``"contact_events"``: each channel's contact conductance steps by a bounded
+factor at events placed at the kinks of the own-contact residual, :mod:`.thermal_events`; per-touch
+parameters of the joint refinement). Optional too (``noise_weighted``): the joint refinement in
+units of each sample's noise s.d. (the maximum-likelihood fit in the unit the residual is reported
+in) with weak linear priors.
 
 Noise (what a residual is measured against): the recorder adds white noise ``sigma_w`` (from the
 pre-contact segment) and jitters its time stamps by ``sigma_t`` (estimated from how far each curve
@@ -55,6 +59,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,8 +69,10 @@ from scipy.interpolate import LSQUnivariateSpline
 from synth.errors import DataError
 from synth.materials import Material
 from synth.sensors.thermal.approach import approach_term
+from synth.sensors.thermal.contact_events import contact_event_terms
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
-from tactile_learn.calibration.thermal_kinks import residual_kinks
+from tactile_learn.calibration.thermal_events import place_events
+from tactile_learn.calibration.thermal_kinks import residual_kinks, residual_windows
 
 __all__ = ["CalibrationResult", "FitTouch", "Parameter", "calibrate_channels", "noise_levels", "prepare_touches"]
 
@@ -100,7 +107,7 @@ PRIOR_LINEAR_SD = 1.0
 #: local minima without making two sessions agree (the report lists what the data leave free)
 PRIOR_WEIGHT = 0.0
 #: per-touch nuisance terms the fit may add (see synth.sensors.thermal.dynamics.nuisance_terms)
-NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor", "approach")
+NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor", "approach", "contact_events")
 #: the approach (``"approach"`` in ``nuisance``; synth.sensors.thermal.approach): heat through the
 #: closing air gap before the contact, no per-touch amplitude but two SHARED parameters (the
 #: effective residual gap g0 and the approach speed); the gap's flux is integrated over this
@@ -108,6 +115,20 @@ NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor", "approach"
 #: finite-volume solution at 50 Hz, 0.5-0.8 % at 25 Hz)
 APPROACH_WINDOW_S = 2.0
 APPROACH_HZ = 25.0
+#: contact events (``"contact_events"`` in ``nuisance``; synth.sensors.thermal.contact_events): the
+#: contact conductance steps at events placed at the kinks of every touch's own-contact residual
+#: (tactile_learn.calibration.thermal_events: both channels jointly, one event time for both),
+#: refined jointly with the touches' own contacts. Per event: a factor on each channel's contact
+#: conductance, within [1 / EVENT_FACTOR_MAX, EVENT_FACTOR_MAX] (a slip or creep of the pad changes
+#: its real contact area, not by more than about twofold while the force holds), and a shift of its
+#: time within +-EVENT_SHIFT_S (the placement's grid is 0.05 s); the Volterra quadrature on a grid of
+#: EVENT_HZ (0.01-0.02 % of the term against the finite-volume solution)
+EVENT_FACTOR_MAX = 2.0
+#: one factor per event for both channels (the pad's real contact area changes alike under both
+#: thermistors) instead of one per channel
+EVENT_FACTOR_SHARED = False
+EVENT_SHIFT_S = (-0.15, 0.15)
+EVENT_HZ = 25.0
 #: the contact precursor's length (s before the contact start): see NUISANCE_TERMS
 PRECURSOR_S = 0.6
 _NUISANCE_DOC = {
@@ -118,6 +139,8 @@ _NUISANCE_DOC = {
     "contact: an uneven pad, a thinning air gap), one amplitude per channel",
     "approach": "(shared) heat through the closing air gap before the contact, h = 1 / (1 / H + (g0 + v (-t)) / "
     "k_air), k_air = 0.026 W/(m K): no amplitude of its own",
+    "contact_events": "contact events: each channel's contact conductance steps by a bounded factor at the kinks "
+    "of its residual (slip or creep of the pad; one event time for both channels)",
 }
 #: the joint refinement (shared + every touch's own contact) fits every sample in units of its
 #: noise s.d. (white noise and timing jitter, see noise_levels), with weak priors (PRIOR_ROW_TOUCH_K):
@@ -360,6 +383,8 @@ class _Problem:
         self.h_scale = np.ones(self.n)
         #: the linear priors' row scale (see PRIOR_ROW_K)
         self.prior_row_k = PRIOR_ROW_K
+        #: contact events' times (n, K) after each onset (NaN: none), set by with_events
+        self.event_t: np.ndarray | None = None
 
     def _noise_weights(self, noise: dict[str, dict[str, float]] | None) -> np.ndarray:
         """1 / sigma(t) of every sample, ``sigma^2 = sigma_w^2 + (sigma_t dx/dt)^2`` with the data's
@@ -377,12 +402,63 @@ class _Problem:
         weight *= self.mask[None]
         return weight / np.sqrt(np.mean(weight[:, self.mask] ** 2))
 
+    def with_events(self, times: Sequence[Sequence[float]]) -> _Problem:
+        """The same problem with contact events at ``times`` (per touch, s after its onset): their
+        factors and time shifts become per-touch parameters of :meth:`with_touch_contact`."""
+        twin = copy.copy(self)
+        slots = max((len(row) for row in times), default=0)
+        twin.event_t = np.full((self.n, slots), np.nan)
+        for i, row in enumerate(times):
+            twin.event_t[i, : len(row)] = row
+        return twin
+
+    def _event_parameters(self) -> list[Parameter]:
+        """Per event slot: each channel's log conductance factor and the time shift (see EVENT_*)."""
+        if self.event_t is None:
+            return []
+        bound = math.log(EVENT_FACTOR_MAX)
+        out = []
+        for k in range(self.event_t.shape[1]):
+            for ch in self._event_channels():
+                doc = f"log of the {ch} contact conductance factor at the touch's event {k}"
+                out.append(Parameter(f"event{k}.{ch}_log_factor", "", -bound, bound, 0.0, False, doc))
+            doc = f"shift of event {k}'s time from the kink's"
+            out.append(Parameter(f"event{k}.shift_s", "s", *EVENT_SHIFT_S, 0.0, False, doc))
+        return out
+
+    def _event_channels(self) -> tuple[str, ...]:
+        """Whose factor an event has: each channel's, or one for both (EVENT_FACTOR_SHARED)."""
+        if EVENT_FACTOR_SHARED and self.passive:
+            return ("both",)
+        return ("heated", "passive") if self.passive else ("heated",)
+
+    def events(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The events' times (n, K) after each onset and every channel's factors (C, n, K), or None."""
+        if self.event_t is None or not self.per_touch or self.event_t.shape[1] == 0:
+            return None
+        names = [p.name for p in self.per_touch]
+        k0, n = len(self.shared), self.n
+
+        def values(name: str) -> np.ndarray:
+            g = names.index(name)
+            return free[k0 + g * n : k0 + (g + 1) * n]
+
+        slots = range(self.event_t.shape[1])
+        times = self.event_t + np.stack([values(f"event{k}.shift_s") for k in slots], axis=1)
+        channels = self._event_channels()
+        factors = np.exp(
+            np.stack([np.stack([values(f"event{k}.{ch}_log_factor") for k in slots], axis=1) for ch in channels])
+        )
+        if channels == ("both",):
+            factors = np.concatenate([factors, factors])
+        return times, factors
+
     def with_touch_contact(self, noise: dict[str, dict[str, float]] | None = None) -> _Problem:
         """The same problem with every touch's own contact (free, after the shared fit): its
         conductance factor, its lead and its build-up time relative to the shared ones, each with a
         weak prior (they trade off with the shared contact)."""
         twin = copy.copy(self)
-        twin.per_touch = list(_TOUCH_CONTACT)
+        twin.per_touch = list(_TOUCH_CONTACT) + self._event_parameters()
         if noise is not None:  # data rows in noise units: the priors' rows weak beside them
             twin.prior_row_k = PRIOR_ROW_TOUCH_K
             twin.weight = twin._noise_weights(noise)
@@ -448,11 +524,20 @@ class _Problem:
         cols = np.zeros((len(channels), self.n, self.length, 3))
         power = np.zeros((self.n, self.length))
         extra = np.zeros((len(channels), self.n, self.length, self.n_nuisance))
+        events = self.events(free)
         for c, ch in enumerate(channels):
             model = self.channel_model(values, ch, e, spreading)
             t_off = lead + values["heater.off_after_onset_s"] if (c == 0 and self.heater_off) else None
             terms = channel_terms(model, t_rel, ramp, t_off)
-            obj = terms.obj
+            obj, drift, step = terms.obj, terms.drift, terms.power
+            if events is not None:  # the contact conductance's steps (times from the contact's start)
+                # (clipped at the contact's start: an event before it would be part of the build-up)
+                at = np.maximum(events[0] + lead[:, None], 0.0)
+                ev = contact_event_terms(model, t_rel, ramp, at, events[1][c], t_off, EVENT_HZ)
+                obj = obj + ev.obj
+                # a drift's net heating C r flows out through the changed contact too
+                drift = drift + values[f"{ch}.heat_capacity_j_m2k"] * ev.heating
+                step = None if step is None or ev.power is None else step + ev.power
             if "approach" in self.nuisance:  # the gap's exchange, per kelvin of the same V0
                 gap, speed = values["approach.gap_um"] * 1e-6, values["approach.speed_mm_s"] * 1e-3
                 obj = obj + approach_term(model, t_rel, ramp, gap, speed, APPROACH_WINDOW_S, APPROACH_HZ)
@@ -474,15 +559,15 @@ class _Problem:
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
             # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
             cols[c, :, :, 0] = 1.0 + obj
-            cols[c, :, :, 1] = terms.drift + lead_lag * obj
+            cols[c, :, :, 1] = drift + lead_lag * obj
             cols[c, :, :, 2] = -obj
-            if terms.power is not None:
+            if step is not None:
                 # the heater's power at the switch: its loss to the ambient plus the net heating,
                 # Q = G (R0 + r lead_lag - T_amb) + C r; it drops to 0 at t_off
                 g, cap = values[f"{ch}.loss_w_m2k"], values[f"{ch}.heat_capacity_j_m2k"]
-                cols[c, :, :, 0] -= g * terms.power
-                cols[c, :, :, 1] -= (g * lead_lag + cap) * terms.power
-                power = g * terms.power  # the column of T_amb (shared by every touch)
+                cols[c, :, :, 0] -= g * step
+                cols[c, :, :, 1] -= (g * lead_lag + cap) * step
+                power = g * step  # the column of T_amb (shared by every touch)
         return cols, power, extra
 
     @property
@@ -538,8 +623,8 @@ class _Problem:
         """Data residuals in units of the model error, then one weak prior row per parameter."""
         res, _, _ = self.solve(free)
         rows = [(res * self.weight)[:, self.mask].ravel() / MODEL_ERROR_K, PRIOR_WEIGHT * self.prior(free)]
-        if self.per_touch:  # the touches' own contacts: weak priors around the shared one
-            widths = np.repeat([p.hi for p in self.per_touch], self.n)
+        if self.per_touch:  # the touches' own contacts (and events): weak priors around the shared one (no step)
+            widths = np.repeat([max(p.hi, -p.lo) for p in self.per_touch], self.n)
             rows.append(free[len(self.shared) :] / widths / TOUCH_PRIOR_SD)
         return np.concatenate(rows)
 
@@ -552,7 +637,11 @@ class _Problem:
         k, n = len(self.shared), self.n
         jac = np.zeros((len(f0), len(free)))
         touch_of_row = np.concatenate(
-            [np.tile(np.nonzero(self.mask)[0], 2 if self.passive else 1), np.full(k, -1), np.tile(np.arange(n), 3)]
+            [
+                np.tile(np.nonzero(self.mask)[0], 2 if self.passive else 1),
+                np.full(k, -1),
+                np.tile(np.arange(n), len(self.per_touch)),
+            ]
         )
         groups = [[j] for j in range(k)] + [list(range(k + g * n, k + (g + 1) * n)) for g in range(len(self.per_touch))]
         for cols in groups:
@@ -638,7 +727,6 @@ def calibrate_channels(
         # the joint refinement: shared parameters and every touch's own contact together, from the
         # shared fit and the touches' own refits
         problem = problem.with_touch_contact(noise if noise_weighted else None)
-        lo2, hi2 = problem.bounds()
         x0 = np.concatenate(
             [
                 final.x,
@@ -647,6 +735,16 @@ def calibrate_channels(
                 [math.log(r["touch_ramp_s"] / float(ramp[0])) for r in spread],
             ]
         )
+        if "contact_events" in problem.nuisance:  # placed at the kinks of every touch's own-contact residual
+            times, logs = place_events(problem, x0, FIT_HZ, shared=problem._event_channels() == ("both",))
+            problem = problem.with_events(times).with_touch_contact(noise if noise_weighted else None)
+            bound = math.log(EVENT_FACTOR_MAX) * (1 - 1e-3)
+            event_x0: list[np.ndarray] = []
+            for k in range(logs.shape[2]):  # per slot: each channel's log factor, then the shift (0)
+                event_x0 += [np.clip(logs[c, :, k], -bound, bound) for c in range(logs.shape[0])]
+                event_x0.append(np.zeros(problem.n))
+            x0 = np.concatenate([x0, *event_x0])
+        lo2, hi2 = problem.bounds()
         final = optimize.least_squares(
             problem.residuals,
             np.clip(x0, lo2 + 1e-9, hi2 - 1e-9),
@@ -687,6 +785,8 @@ def calibrate_channels(
     )
     if problem.per_touch:
         report["touch_contact"] = _touch_bounds(problem, final.x)
+    if problem.event_t is not None:
+        report["contact_events"] = _event_report(problem, final)
     return CalibrationResult(values, per_touch, {**noise.get("heated", {})}, report)
 
 
@@ -838,6 +938,10 @@ def _report(
         FIT_HZ,
         ("heated", "passive") if problem.passive else ("heated",),
     )
+    # where the residual is in time (the contact's start, the first second, later)
+    residual["windows"] = residual_windows(
+        own_res, problem.t, problem.mask, problem.onset, ("heated", "passive") if problem.passive else ("heated",)
+    )
     residual["contact"] = (
         "each touch with its own contact (conductance factor, lead, build-up: the touch's nuisance "
         "parameters, refitted with everything else shared); shared_contact: one contact for every touch"
@@ -919,12 +1023,54 @@ def _residual_summary(
     }
 
 
+def _event_report(problem: _Problem, fit: optimize.OptimizeResult) -> dict[str, Any]:
+    """Every contact event: its touch, time, each channel's conductance factor with its posterior
+    s.d. (log) and whether it sits at a bound; how many factors sit at a bound."""
+    events = problem.events(fit.x)
+    assert problem.event_t is not None
+    times, factors = events if events is not None else (problem.event_t, np.ones((1, *problem.event_t.shape)))
+    jac = np.asarray(fit.jac)
+    cov = np.linalg.pinv(jac.T @ jac) * float(np.mean(fit.fun**2))
+    names = [p.name for p in problem.per_touch]
+    channels = problem._event_channels()
+    bound = math.log(EVENT_FACTOR_MAX)
+    rows, at_bound = [], 0
+    for i in range(problem.n):
+        for k in np.flatnonzero(np.isfinite(problem.event_t[i])):
+            # the recording's file name only (a report goes into a model card: no path of this machine)
+            row: dict[str, Any] = {"touch": Path(problem.touches[i].file).name, "t_s": float(times[i, k])}
+            for c, ch in enumerate(channels):
+                col = problem.n_free + names.index(f"event{k}.{ch}_log_factor") * problem.n + i
+                log_f = math.log(float(factors[c, i, k]))
+                row[f"{ch}_factor"] = float(factors[c, i, k])
+                row[f"{ch}_sd_log"] = float(np.sqrt(max(cov[col, col], 0.0)))
+                if bound - abs(log_f) < 1e-3 * 2 * bound:  # within 1e-3 of the span, as the other parameters
+                    row[f"{ch}_at_bound"] = True
+                    at_bound += 1
+            rows.append(row)
+    return {
+        "events": rows,
+        "count": len(rows),
+        "factor_bounds": [1.0 / EVENT_FACTOR_MAX, EVENT_FACTOR_MAX],
+        "factors_at_bound": at_bound,
+        "why_at_bound": "a step the fit would make larger than twofold: what the residual holds there is more than a "
+        "change of the contact conductance (the kinks are sharper than a step behind the thermistor's lags can bend "
+        "the reading)"
+        if at_bound
+        else None,
+        "meaning": "the contact conductance of each channel times the factor from the event's time on (slip or "
+        "creep of the pad while the force holds); events found at the kinks of the own-contact residual",
+    }
+
+
 def _touch_bounds(problem: _Problem, free: np.ndarray) -> dict[str, Any]:
     """Every touch's own contact: how many touches sit at a bound of each parameter, and why."""
     lo, hi = problem.bounds()
     k, n = problem.n_free, problem.n
     out: dict[str, Any] = {}
     for g, p in enumerate(problem.per_touch):
+        if p.name.startswith("event"):  # reported with the events (contact_events)
+            continue
         cols = slice(k + g * n, k + (g + 1) * n)
         span = hi[cols] - lo[cols]
         low = int(np.sum(free[cols] - lo[cols] < 1e-3 * span))

@@ -13,11 +13,13 @@ kink explains.
 
 from __future__ import annotations
 
+import itertools
+import math
 from typing import Any
 
 import numpy as np
 
-__all__ = ["residual_kinks"]
+__all__ = ["WINDOWS_S", "event_times", "residual_kinks", "residual_windows"]
 
 #: each side's window for the slope about a sample (s)
 HALF_S = 0.3
@@ -62,6 +64,32 @@ def _line_rms(t: np.ndarray, r: np.ndarray, hinges: list[float]) -> np.ndarray:
     """What is left of ``r`` about a line plus hinges ``max(t - t_k, 0)`` (least squares)."""
     cols = np.stack([np.ones_like(t), t, *(np.maximum(t - tk, 0.0) for tk in hinges)], axis=1)
     return r - cols @ np.linalg.lstsq(cols, r, rcond=None)[0]
+
+
+#: kinks of two channels this close are one contact event (s): 7 of 10 cooled-wood heated kinks on
+#: R_1 have a passive one within 0.15 s, and the channels' different lags delay one step's bend by
+#: 0.15-0.35 s (simulated), so up to 0.2 s apart
+SAME_EVENT_S = 0.3
+
+
+def event_times(res: np.ndarray, t: np.ndarray, mask: np.ndarray, onset: np.ndarray, fs: float) -> list[list[float]]:
+    """Contact events found in residuals ``res`` (C, n, W) (as :func:`residual_kinks`): per touch the
+    times (s after the onset) of every channel's kinks, one event where two channels' kinks lie
+    within ``SAME_EVENT_S`` (the same slip felt by both thermistors), the stronger one's time."""
+    n_side = max(round(HALF_S * fs), 2)
+    out = []
+    for i in range(res.shape[1]):
+        tt = t[i][mask[i]] - onset[i]
+        found: list[tuple[float, float]] = []  # (|slope change| relative to the threshold, time)
+        for c in range(res.shape[0]):
+            change = _slope_change(tt, res[c, i][mask[i]], n_side)
+            found += [(abs(float(change[k])), float(tt[k])) for k in _kinks(tt, change)]
+        kept: list[float] = []
+        for _, time in sorted(found, reverse=True):
+            if all(abs(time - other) > SAME_EVENT_S for other in kept):
+                kept.append(time)
+        out.append(sorted(kept))
+    return out
 
 
 def residual_kinks(
@@ -115,4 +143,35 @@ def residual_kinks(
             "late_rms_about_a_line_k": rms(s["line"]),
             "late_rms_about_a_line_and_hinges_k": rms(s["hinged"]),
         }
+    return out
+
+
+#: the residual's time windows (s after the onset): before the onset (the contact's start), the
+#: first second in two halves, then later and later
+WINDOWS_S = (-math.inf, 0.0, 0.5, 1.0, 2.0, 4.0, math.inf)
+
+
+def residual_windows(
+    res: np.ndarray, t: np.ndarray, mask: np.ndarray, onset: np.ndarray, channels: tuple[str, ...]
+) -> dict[str, Any]:
+    """Where the residual is: per channel and time window (:data:`WINDOWS_S`, after each onset) the
+    RMS (K), the number of samples and the window's share of the channel's sum of squares."""
+    rel = t - onset[:, None]
+    out: dict[str, Any] = {}
+    for c, ch in enumerate(channels):
+        total = float((res[c][mask] ** 2).sum())
+        rows = []
+        for lo, hi in itertools.pairwise(WINDOWS_S):
+            sel = mask & (rel >= lo) & (rel < hi)
+            ss = float((res[c][sel] ** 2).sum())
+            rows.append(
+                {
+                    "from_s": None if math.isinf(lo) else lo,
+                    "to_s": None if math.isinf(hi) else hi,
+                    "samples": int(sel.sum()),
+                    "rms_k": math.sqrt(ss / sel.sum()) if sel.any() else float("nan"),
+                    "share_of_squares": ss / total if total > 0 else 0.0,
+                }
+            )
+        out[ch] = rows
     return out

@@ -20,9 +20,10 @@ lag puts the visible departure well after the touch).
 Every design's orthonormal basis is prepared once (dense) and then factored per contact start
 (:mod:`.calibrated_one_curve`): a batch is one product of the curves with every start's basis of
 its templates' span and one batched product per start (~2.5 times fewer multiply-adds than the
-dense bases); a single curve (``predict`` of one row, and
-:meth:`CalibratedFitEstimator.frame_runner`, the streaming path) reads the same factored bases with
-fewer calls, giving the batch's probabilities within 1e-7.
+dense bases); a single curve (``predict`` of one row, and the streaming path:
+:meth:`CalibratedFitEstimator.one_frame_run`, :meth:`~CalibratedFitEstimator.frame_runner`) reads
+the same factors through :class:`~.calibrated_one_curve_run.OneCurveRun`: its check and scores in
+the fewest numpy calls, giving the batch's probabilities within 1e-7.
 """
 
 from __future__ import annotations
@@ -36,10 +37,11 @@ from synth.errors import ConfigError
 from synth.scene import Scene
 from synth.sensors.thermal import ThermalConfig, spreading_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
-from tactile_learn.estimators.base import Classifier
+from tactile_learn.estimators.base import Classifier, labels_of
 from tactile_learn.estimators.classical.calibrated_one_curve import StartFactoredBases
+from tactile_learn.estimators.classical.calibrated_one_curve_run import OneCurveRun
 from tactile_learn.estimators.classical.curve_match import NONE_BONUS, softmax
-from tactile_learn.validation.thermal import thermal_check
+from tactile_learn.validation.thermal import thermal_check, thermal_input_shape
 
 __all__ = ["CalibratedFitEstimator"]
 
@@ -73,6 +75,8 @@ class CalibratedFitEstimator(Classifier):
             self.templates_ = self._templates()
             self.projections_ = self._projections()
             self.one_curve_ = self._one_curve()
+            cfg: ThermalConfig = self.scene.sensor
+            self.one_run_ = OneCurveRun.build(self.one_curve_, thermal_input_shape(cfg), self.input_check_.bounds())
         return self
 
     def _templates(self) -> tuple[np.ndarray, np.ndarray]:
@@ -204,13 +208,26 @@ class CalibratedFitEstimator(Classifier):
         sigma = max(self.scene.sensor.readout.noise_k, MODEL_ERROR_K)
         return StartFactoredBases.build(q, n_columns, centred, design_start, design_template, owner, sigma, NONE_BONUS)
 
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        run = self.__dict__.get("one_run_")
+        if run is not None:  # one plain valid curve: checked and scored at once (calibrated_one_curve_run)
+            out = run(X)
+            if out is not None:
+                return out.argmax(axis=1)  # int64: labels_of without its conversions
+        return labels_of(self.predict_proba_checked(self.prepared_state("input_check_")(X)))
+
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
+        run = self.__dict__.get("one_run_")
+        if run is not None:  # as predict's
+            out = run(X)
+            if out is not None:
+                return out
         return self.predict_proba_checked(self.prepared_state("input_check_")(X))
 
     def predict_proba_checked(self, X: np.ndarray) -> np.ndarray:
-        self.prepared_state("templates_")  # an unprepared estimator fails before any work
-        if len(X) == 1:  # one curve: the bases factored per start (a copy: centred in place)
-            return self.prepared_state("one_curve_").probabilities(np.array(X, dtype=np.float64).reshape(-1))
+        run: OneCurveRun = self.prepared_state("one_run_")  # an unprepared estimator fails before any work
+        if len(X) == 1:  # one curve: the bases factored per start, its own layout
+            return run.probabilities(X)
         cfg: ThermalConfig = self.scene.sensor
         x = np.asarray(X, dtype=np.float64)
         if x.ndim == 2:
@@ -229,16 +246,19 @@ class CalibratedFitEstimator(Classifier):
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
         """A function of one validated curve ``(1, *shape)`` giving what :meth:`predict_proba_checked`
-        gives, with the single-curve state looked up once
-        (:class:`~tactile_learn.frame_stream.FrameStream` calls it for the single frames of an
-        ungated stream, after its own check)."""
-        probabilities = self.prepared_state("one_curve_").probabilities
-        as_float64 = np.float64
+        gives (:class:`~tactile_learn.frame_stream.FrameStream` calls it for the single frames of an
+        ungated stream that passed its own check)."""
+        run: OneCurveRun = self.prepared_state("one_run_")
+        return run.probabilities
 
-        def run_curve(x: np.ndarray) -> np.ndarray:
-            return probabilities(x.astype(as_float64).reshape(-1))  # a copy: centred in place
-
-        return run_curve
+    def one_frame_run(self) -> Callable[[object], np.ndarray | None]:
+        """A function of one frame giving its probabilities where it is a plain valid curve (float32,
+        the scene's shape, inside the ADC's range: checked from its mean and spread, most curves with
+        no pass of their own), else ``None``
+        (:class:`~tactile_learn.frame_stream.FrameStream` calls it first for the frames of an
+        ungated stream; ``None`` sends a frame through the stream's own checks and their errors)."""
+        run: OneCurveRun = self.prepared_state("one_run_")
+        return run
 
 
 def _column_bases(designs: np.ndarray) -> tuple[np.ndarray, int, bool]:

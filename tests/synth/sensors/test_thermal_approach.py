@@ -6,70 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import integrate, sparse
 
 from synth.errors import InputError
 from synth.materials import get_material
 from synth.sensors.thermal.approach import K_AIR_W_MK, approach_term, gap_conductance
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms
-from tests.thermal_reference import add_conduction_chain, add_lag_chain
-
-
-def _finite_volume(
-    t: np.ndarray,
-    h_of_t: object,
-    *,
-    heat_capacity: float,
-    loss: float,
-    k_w_mk: float,
-    diffusivity_m2_s: float,
-    lags: tuple[float, ...],
-    start_s: float,
-    cells: int = 260,
-) -> np.ndarray:
-    """Reading deviation (V0 = 1 K, body above the object) at times ``t`` for an interface
-    conductance ``h_of_t(time)`` switched on at ``start_s``; a slab object on a graded grid."""
-    span = float(t.max()) - start_s
-    first = np.sqrt(diffusivity_m2_s * 1e-3) / 10
-    length = 12 * np.sqrt(diffusivity_m2_s * span)
-    widths = first * ((length / first) ** (1.0 / cells)) ** np.arange(cells)
-    faces = np.concatenate([[0.0], np.cumsum(widths)])
-    centres = 0.5 * (faces[1:] + faces[:-1])
-    cap = k_w_mk / diffusivity_m2_s * widths
-    n = 1 + cells + len(lags)
-    base = np.zeros((n, n))
-    links = k_w_mk / np.diff(centres)
-    add_conduction_chain(base, 1, links, cap)
-    base[cells, cells] -= k_w_mk / (faces[-1] - centres[-1]) / cap[-1]
-    base[0, 0] = -loss / heat_capacity
-    prev = add_lag_chain(base, 1 + cells, lags)
-    # the interface: flux g (1 + u - theta_1) out of the body into the first cell, g the gap's
-    # conductance in series with half the first cell
-    couple = np.zeros((n, n))
-    couple[0, 0], couple[0, 1] = -1.0 / heat_capacity, 1.0 / heat_capacity
-    couple[1, 0], couple[1, 1] = 1.0 / cap[0], -1.0 / cap[0]
-    drive = np.zeros(n)
-    drive[0], drive[1] = -1.0 / heat_capacity, 1.0 / cap[0]
-    base_s, couple_s = sparse.csr_matrix(base), sparse.csr_matrix(couple)
-
-    def g(time: float) -> float:
-        h = float(h_of_t(time))  # type: ignore[operator]
-        return 0.0 if h <= 0 else 1.0 / (1.0 / h + widths[0] / (2 * k_w_mk))
-
-    sol = integrate.solve_ivp(
-        lambda time, y: base_s @ y + g(time) * (couple_s @ y + drive),
-        (start_s, float(t.max())),
-        np.zeros(n),
-        method="Radau",
-        t_eval=t,
-        rtol=1e-8,
-        atol=1e-11,
-        jac=lambda time, y: base_s + g(time) * couple_s,
-        max_step=0.01,
-    )
-    assert sol.success, sol.message
-    return np.asarray(sol.y[prev])
-
+from tests.thermal_reference import varying_contact_reading
 
 CASES = [
     # a heated channel (two lags) on a metal, a passive bead (one lag, a lower contact) on a wood
@@ -97,7 +39,7 @@ def test_approach_matches_the_finite_volume_solution(
         return float(gap_conductance(np.array([[time]]), np.array([h_contact]), gap_m, speed, window)[0, 0])
 
     lags = tuple(params[k_] for k_ in ("lag1_s", "lag2_s") if k_ in params)
-    ref = _finite_volume(
+    ref = varying_contact_reading(
         t,
         h_of_t,
         heat_capacity=params["heat_capacity"],

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tactile_learn.calibration.thermal_kinks import residual_kinks
+from tactile_learn.calibration.thermal_kinks import residual_kinks, residual_windows
 
 FS = 20.0
 
@@ -42,3 +42,18 @@ def test_a_smooth_residual_has_no_kinks() -> None:
     out = residual_kinks(res, t, mask, onset, FS, ("heated", "passive"))
     assert out["heated"]["kinks"] == 0 and out["passive"]["kinks"] == 0
     assert out["heated"]["late_rms_about_a_line_and_hinges_k"] == out["heated"]["late_rms_about_a_line_k"]
+
+
+def test_residual_windows_say_where_the_squares_are() -> None:
+    """A residual that is large only in the first half second after the onset has its squares there."""
+    t = np.arange(0.0, 7.0, 1 / FS)[None, :]
+    onset = np.array([0.3])
+    rel = t - onset[:, None]
+    res = np.where((rel >= 0.0) & (rel < 0.5), 0.02, 0.001)[None] * np.ones((2, 1, 1))
+    out = residual_windows(res, t, np.ones_like(t, dtype=bool), onset, ("heated", "passive"))
+    rows = out["heated"]
+    assert [r["from_s"] for r in rows] == [None, 0.0, 0.5, 1.0, 2.0, 4.0]
+    assert sum(r["samples"] for r in rows) == t.shape[1]
+    assert np.isclose(sum(r["share_of_squares"] for r in rows), 1.0)
+    assert rows[1]["share_of_squares"] > 0.8 and np.isclose(rows[1]["rms_k"], 0.02)
+    assert np.isclose(rows[0]["rms_k"], 0.001) and rows[0]["samples"] == 6

@@ -12,6 +12,7 @@ from synth.errors import InputError
 from synth.scene import Scene, load_scene
 from tactile_learn.estimators.classical.calibrated_fit import CalibratedFitEstimator
 from tactile_learn.estimators.classical.calibrated_one_curve import StartFactoredBases
+from tactile_learn.estimators.classical.calibrated_one_curve_run import overlapping_windows
 from tactile_learn.frame_stream import FrameStream
 from tactile_learn.tasks.thermal import ThermalTask
 from tests.paths import REPO_ROOT
@@ -40,6 +41,9 @@ def assert_single_curves_equal_the_batch(est: CalibratedFitEstimator, x: np.ndar
     batch, single = est.predict_proba(x), one_by_one(est, x)
     np.testing.assert_allclose(single, batch, rtol=0, atol=TOLERANCE)
     np.testing.assert_array_equal(single.argmax(axis=1), batch.argmax(axis=1))
+    labels = [est.predict(x[i : i + 1]) for i in range(len(x))]
+    assert all(label.dtype == np.int64 and label.shape == (1,) for label in labels)
+    np.testing.assert_array_equal(np.concatenate(labels), est.predict(x))
 
 
 @pytest.mark.parametrize("scene_name", ["thermal", "thermal_wns", "robot", "robot_step"])
@@ -59,7 +63,7 @@ def test_factors_reproduce_every_design_basis(scene_name: str) -> None:
         coordinates = one.second[s][:, rank_of[m] + n_templates * np.arange(n_columns)]
         dense = q[:, g * n_columns : (g + 1) * n_columns]
         worst = max(worst, float(np.abs(factor @ coordinates - dense).max()))
-    assert worst <= n * np.finfo(np.float64).eps
+    assert worst <= 4 * n * np.finfo(np.float64).eps
     np.testing.assert_array_equal(one.first[:, n_starts * width :], q[:, -n_columns:])  # the lines' own basis
     # the point: fewer numbers to read per curve than the dense bases (the seed scene: a third)
     assert one.first.size + one.second.size < (0.4 if scene_name == "thermal" else 0.7) * q.size
@@ -134,3 +138,66 @@ def test_bad_single_curves_are_refused(kind: str, message: str) -> None:
     for call in (est.predict, est.predict_proba, FrameStream(est).predict):
         with pytest.raises(InputError, match=message):
             call(curve)
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [(100.0, "saturated reading at or above"), (0.0, "saturated reading at or below"), (-1.0, "negative")],
+)
+def test_curves_at_or_beyond_the_adc_range_are_refused(value: float, message: str) -> None:
+    """The single-curve path's check (the mean +- |y - mean| inside the range) lets no reading at
+    or beyond the ADC's ends through: the full check's error, from every entry point."""
+    scene = load_scene("thermal")
+    est = CalibratedFitEstimator(scene).prepare()
+    curve = held_out_curves(scene, 1, seed=65)[:1].copy()
+    curve[0, 40] = value
+    assert est.one_frame_run()(curve) is None
+    for call in (est.predict, est.predict_proba, FrameStream(est).predict):
+        with pytest.raises(InputError, match=message):
+            call(curve)
+
+
+def test_one_frame_run_scores_plain_curves_and_leaves_the_rest_to_the_full_check() -> None:
+    scene = load_scene("thermal")
+    est = CalibratedFitEstimator(scene).prepare()
+    run = est.one_frame_run()
+    lo, hi = scene.sensor.readout.adc_range_c
+    x = held_out_curves(scene, 2, seed=66)[:8]
+    for curve in x:
+        out = run(curve[None])
+        assert out is not None and out.dtype == np.float32 and out.shape == (1, len(scene.sensor.class_names) + 1)
+        np.testing.assert_array_equal(out, est.frame_runner()(curve[None]))
+    assert run(x[:2]) is None  # two curves: the batch path
+    assert run(x[:1].astype(np.float64)) is None  # another dtype: the full check converts it
+    assert run(list(x[:1])) is None
+    # valid readings whose mean +- |y - mean| reaches past the range: checked by their extremes
+    wide = np.full((1, x.shape[1]), 0.5 * (lo + hi), dtype=np.float32)
+    wide[0, 0], wide[0, 1] = np.nextafter(np.float32(lo), np.float32(hi)), np.nextafter(np.float32(hi), np.float32(lo))
+    scored = run(wide)
+    assert scored is not None
+    np.testing.assert_allclose(scored, est.predict_proba(np.concatenate([wide, x[:1]]))[:1], rtol=0, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def testoverlapping_windows_hold_every_block_whole(seed: int) -> None:
+    """The single-curve path's second stage: blocks of uneven height stored as overlapping windows
+    of one buffer; a window's product with coordinates that are zero outside its block's rows is
+    the block's product, and the buffer is smaller than blocks zero-padded to the window."""
+    rng = np.random.default_rng(seed)
+    width, columns = 12, 7
+    heights = rng.integers(3, width + 1, size=9)
+    heights[0] = width
+    blocks = [rng.normal(size=(h, columns)) for h in heights]
+    windows, placed = overlapping_windows(blocks, width)
+    assert windows.shape == (len(blocks), width, columns) and not windows.flags.writeable
+    assert sorted(b for b, _ in placed) == list(range(len(blocks)))
+    coordinates = np.zeros((len(blocks), 1, width))
+    for window, (b, offset) in enumerate(placed):
+        np.testing.assert_array_equal(windows[window, offset : offset + heights[b]], blocks[b])
+        coordinates[window, 0, offset : offset + heights[b]] = rng.normal(size=heights[b])
+    products = np.matmul(coordinates, windows)
+    for window, (b, offset) in enumerate(placed):
+        expected = coordinates[window, 0, offset : offset + heights[b]] @ blocks[b]
+        np.testing.assert_allclose(products[window, 0], expected, rtol=1e-13, atol=1e-13)
+    buffer_rows = (len(blocks) - 1) * (windows.strides[0] // windows.strides[1]) + width
+    assert buffer_rows < len(blocks) * width
