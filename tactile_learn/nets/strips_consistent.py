@@ -21,11 +21,10 @@ projection gain less on the block at 30 degrees (README, "A consistency step").
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 from torch import nn
-
-from synth.scene import Scene
-from tactile_learn.nets.strips_general import StripForward
 
 __all__ = ["RATIO_CAP", "RATIO_EPS", "ConsistencyStep"]
 
@@ -41,24 +40,25 @@ RATIO_EPS = 1e-6
 class ConsistencyStep(nn.Module):
     """``(maps (B, N, M) kPa, measured loads (B, N + M)) -> maps``: one ISRA step (module docstring).
 
-    The forward model's matrices are buffers that are not saved with the weights (they follow from
-    the scene): a network with the step loads the weights of the same network without it."""
+    ``forward``: the scene's ``StripForward`` (its matrices and law). They are copied into buffers that
+    are not saved with the weights (they follow from the scene): a network with the step loads the
+    weights of the same network without it."""
 
     stress: torch.Tensor
     sums: torch.Tensor
     stress_t: torch.Tensor
     sums_t: torch.Tensor
 
-    def __init__(self, scene: Scene) -> None:
+    def __init__(self, forward: Any) -> None:
         super().__init__()
-        forward = StripForward(scene)
-        self.n_cells = forward.n_cells
-        self.register_buffer("stress", forward.stress.clone(), persistent=False)
-        self.register_buffer("sums", forward.sums.clone(), persistent=False)
-        self.register_buffer("stress_t", forward.stress.t().contiguous(), persistent=False)
-        self.register_buffer("sums_t", forward.sums.t().contiguous(), persistent=False)
-        self.p0 = forward.p0
-        self.exponent = forward.exponent
+        self.n_cells = int(forward.n_cells)
+        stress, sums = forward.stress, forward.sums
+        self.register_buffer("stress", stress.clone(), persistent=False)
+        self.register_buffer("sums", sums.clone(), persistent=False)
+        self.register_buffer("stress_t", stress.t().contiguous(), persistent=False)
+        self.register_buffer("sums_t", sums.t().contiguous(), persistent=False)
+        self.p0 = float(forward.p0)
+        self.exponent = float(forward.exponent)
 
     def model_loads(self, flat: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Model loads (B, C) of flat maps (B, N*M) and the segments' conductance gains (B, S)."""

@@ -35,6 +35,7 @@ from torch import nn
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.nets.strip_blocks import AxialBlock, StripLoads, strip_encoder
+from tactile_learn.nets.strips_consistent import ConsistencyStep
 
 __all__ = ["ARCH", "CONSISTENT_SIZES", "SIZES", "GeneralStripNet", "StripForward", "StripResidual", "law_inverse"]
 
@@ -198,9 +199,7 @@ class GeneralStripNet(nn.Module):
             self.refine_head = _zero_conv(hidden, 2)
         self.consistency: nn.Module | None = None
         if size in CONSISTENT_SIZES:
-            from tactile_learn.nets.strips_consistent import ConsistencyStep
-
-            self.consistency = ConsistencyStep(scene)
+            self.consistency = ConsistencyStep(StripForward(scene))
 
     def _outputs(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
         """(final map, first map or None, measured loads), maps in kPa; with the consistency step the

@@ -19,7 +19,7 @@ from synth.sensors.strips import StripSensor
 from tactile_learn.checkpoints import load_weights
 from tactile_learn.estimators.classical.projection import ProjectionEstimator
 from tactile_learn.nets.strips_consistent import RATIO_CAP, ConsistencyStep
-from tactile_learn.nets.strips_general import GeneralStripNet, GeneralStripNetWithResidual
+from tactile_learn.nets.strips_general import GeneralStripNet, GeneralStripNetWithResidual, StripForward
 from tactile_learn.strips_consistency import StripConsistency
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
@@ -38,7 +38,7 @@ def test_the_step_is_the_projection_estimators_isra_update(frames: dict[str, np.
     """Against the classical estimator's own update (per-layer operators, float64 maps): the same
     ratio ``J^T L / J^T L_model`` on every cell a contact reaches."""
     scene = load_scene("strips16")
-    step = ConsistencyStep(scene)
+    step = ConsistencyStep(StripForward(scene))
     # a start that does not explain the loads: the true maps blurred and rescaled unevenly
     truth = frames["pressure"].astype(np.float64)
     start = 0.7 * truth + 0.3 * np.roll(truth, 1, axis=2) + 0.5
@@ -59,7 +59,7 @@ def test_a_map_that_explains_its_loads_is_kept(frames: dict[str, np.ndarray]) ->
     maps = frames["pressure"].astype(np.float32)
     explained = StripConsistency(scene).model_loads(maps)  # the loads this very map produces
     with torch.inference_mode():
-        got = ConsistencyStep(scene)(torch.from_numpy(maps), torch.from_numpy(explained).float()).numpy()
+        got = ConsistencyStep(StripForward(scene))(torch.from_numpy(maps), torch.from_numpy(explained).float()).numpy()
     np.testing.assert_allclose(got, maps, rtol=1e-3, atol=1e-3 * float(maps.max()))
 
 
@@ -69,7 +69,9 @@ def test_the_step_brings_a_wrong_map_closer_to_its_readings(frames: dict[str, np
     truth = frames["pressure"].astype(np.float32)
     start = (truth * np.linspace(0.3, 1.7, 16, dtype=np.float32)[None, None, :] + 1.0).astype(np.float32)
     with torch.inference_mode():
-        stepped = ConsistencyStep(scene)(torch.from_numpy(start), torch.from_numpy(frames["loads"]).float()).numpy()
+        stepped = ConsistencyStep(StripForward(scene))(
+            torch.from_numpy(start), torch.from_numpy(frames["loads"]).float()
+        ).numpy()
     before = consistency.residual(frames["readings"], start)["residual_sigma"]
     after = consistency.residual(frames["readings"], stepped)["residual_sigma"]
     assert np.median(after) < 0.7 * np.median(before)
