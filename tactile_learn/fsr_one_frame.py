@@ -13,7 +13,8 @@ the batch path's (the misfits agree to rounding: a 3 x 3 solve by elimination in
 from __future__ import annotations
 
 import math
-from operator import mul, sub
+from array import array
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,9 +30,9 @@ _FORCE_FLOOR = float(np.float32(1e-3))  # the batch path clips the float32 force
 
 
 def _log_force(force: float) -> float:
-    """log of a float32 force (N) clipped at 1 mN, taken in float32 (as the batch path's
-    ``_log_force``)."""
-    return float(np.log(np.float32(max(force, _FORCE_FLOOR))))
+    """log of a float32 force (N) clipped at 1 mN, in float64 (as the batch path's ``_log_force``;
+    a numpy scalar's log cost more than the rest of a press's screen)."""
+    return math.log(max(force, _FORCE_FLOOR))
 
 
 def expit(z: float) -> float:
@@ -75,6 +76,8 @@ class OneFrameCheck:
         self.steps = int(check.steps)
         self.floor_us = float(check.floor_us)
         self.positions = [(float(x), float(y)) for x, y in positions]
+        if len(self.positions) != 6:  # the misfit's sums are written out for the film's six sensors
+            raise ValueError(f"the one-frame check is written for six sensors, got {len(self.positions)}")
         lay, el = config.layout, config.element
         e_star = lay.youngs_modulus_mpa / (1.0 - lay.poisson**2)  # as fsr.hertz_radius_mm
         self.tip, self.e_star = float(tip), float(e_star)
@@ -82,7 +85,14 @@ class OneFrameCheck:
         self.d0, self.dd, self.d_top = float(dg[0]), float(dg[1] - dg[0]), float(len(dg) - 1.000001)
         self.a0, self.da, self.a_top = float(ag[0]), float(ag[1] - ag[0]), float(len(ag) - 1.000001)
         self.d_max = float(dg[-1])
+        if dg[0] != 0.0 or ag[0] != 0.0:  # conductance_at leaves out the clamps below the grids' start
+            raise ValueError("the film's load table must start at distance 0 and radius 0")
         self.table = transfer.table.tolist()
+        #: the table by column (radius): a force fixes two columns, read at two distances per sensor.
+        #: Packed doubles rather than lists of floats: a sensor's four values lie in one or two
+        #: cache lines, not in eight objects (in a stream, other work between frames evicts them:
+        #: ~1 us a press, measured)
+        self.columns = [array("d", column) for column in transfer.table.T.tolist()]
         self.transfer = transfer
         self.leak, self.per_n = float(el.leak_conductance_us), float(el.conductance_us_per_n)
         self.break_n, self.width_n, self.sat_n = (
@@ -95,7 +105,22 @@ class OneFrameCheck:
         self.code_conductance = readout.conductance_us(np.arange(levels, dtype=np.float64)).tolist()
         # the same by code, for a look-up that is also the check (NaN or a fractional code is no key)
         self.conductance_of_code = {float(code): g for code, g in enumerate(self.code_conductance)}
+        #: and packed, for codes known to be whole and in range (:meth:`measured_of_whole`)
+        self.code_conductance_packed = array("d", self.code_conductance)
         self.readout = readout
+        #: what conductance_at reads on every call, in one tuple (one attribute look-up)
+        self._constants = (
+            tuple(self.positions),
+            self.columns,
+            self.dd,
+            self.d_top,
+            self.d_max,
+            self.leak,
+            self.per_n,
+            self.break_n,
+            self.width_n,
+            self.sat_n,
+        )
 
     # ---- the forward model ----------------------------------------------------------------------
 
@@ -117,32 +142,38 @@ class OneFrameCheck:
     def conductance_at(self, x: float, y: float, column: tuple[float, float, int, float]) -> list[float]:
         """:meth:`conductance` with the force's part (:meth:`column`) worked out already (the
         finite differences in ``x`` and ``y`` share it). Written out with local names: this is
-        the check's inner loop."""
+        the check's inner loop. The same operations in the same order as the batch path, less
+        two that cannot change a bit here: the clamps below the grids' start (distances and radii
+        are >= 0, the grids start at 0) and, for a load far above the break, the gate's logistic
+        (``exp(-z) < 2**-53`` for ``z > 37``: ``1 / (1 + exp(-z))`` is exactly 1)."""
         exp, tanh, sqrt = math.exp, math.tanh, math.sqrt
+        positions, columns, dd, d_top, d_max, leak, per_n, brk, width, sat = self._constants
         force, radius, j0, fj = column
-        j1, gj = j0 + 1, 1 - fj
-        table, d0, dd, d_top, d_max = self.table, self.d0, self.dd, self.d_top, self.d_max
-        leak, per_n, brk, width, sat = self.leak, self.per_n, self.break_n, self.width_n, self.sat_n
+        near, far = columns[j0], columns[j0 + 1]  # the load table's two columns of this radius
+        gj = 1.0 - fj  # (a float constant: int - float takes a slower path; the same value)
         out = []
-        for px, py in self.positions:
+        for px, py in positions:
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
             else:
-                di = (d - d0) / dd
-                di = 0.0 if di < 0.0 else d_top if di > d_top else di
+                di = d / dd  # (d - 0) / dd
+                if di > d_top:
+                    di = d_top
                 i0 = int(di)
-                fi = di - i0
-                gi = 1 - fi
-                row, nxt = table[i0], table[i0 + 1]
-                per_newton = row[j0] * gi * gj + nxt[j0] * fi * gj + row[j1] * gi * fj + nxt[j1] * fi * fj
+                fi = di % 1.0  # di - i0 (di >= 0: both exact)
+                gi = 1.0 - fi
+                per_newton = near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj
             load = per_newton * force
             if load < 0.0:
                 load = 0.0
             z = (load - brk) / width
-            gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
-            out.append(leak + per_n * (sat * tanh(load * gate / sat)))
+            if z > 37.0:  # the gate is exactly 1
+                out.append(leak + per_n * (sat * tanh(load / sat)))
+            else:
+                gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+                out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
     def measured(self, codes: list[float]) -> list[float]:
@@ -158,15 +189,26 @@ class OneFrameCheck:
             return [table[int(c)] for c in codes]
         return [float(g) for g in self.readout.conductance_us(np.array(codes))]  # e.g. a calibrated film's
 
+    def measured_of_whole(self, codes: list[float]) -> list[float]:
+        """:meth:`measured` of six codes known to be whole ADC codes (a frame whose codes were
+        all keys of a table of such codes): packed doubles rather than a dictionary's four
+        objects a code, where other work between frames evicts them."""
+        table = self.code_conductance_packed
+        c0, c1, c2, c3, c4, c5 = codes
+        return [table[int(c0)], table[int(c1)], table[int(c2)], table[int(c3)], table[int(c4)], table[int(c5)]]
+
     def _scale(self, measured: list[float]) -> float:
         """The misfit's denominator: RMS measured conductance plus the floor."""
-        return math.sqrt(sum(map(mul, measured, measured)) / len(measured)) + self.floor_us
+        m0, m1, m2, m3, m4, m5 = measured  # six sensors, summed in order from the first (as numpy)
+        return math.sqrt((m0 * m0 + m1 * m1 + m2 * m2 + m3 * m3 + m4 * m4 + m5 * m5) / 6) + self.floor_us
 
     @staticmethod
     def _cost(measured: list[float], model: list[float]) -> float:
-        """Summed squared conductance misfit (the batch path's ``cost``)."""
-        resid = list(map(sub, measured, model))
-        return sum(map(mul, resid, resid))
+        """Summed squared conductance misfit (the batch path's ``cost``): six sensors, in order."""
+        m0, m1, m2, m3, m4, m5 = measured
+        c0, c1, c2, c3, c4, c5 = model
+        r0, r1, r2, r3, r4, r5 = m0 - c0, m1 - c1, m2 - c2, m3 - c3, m4 - c4, m5 - c5
+        return r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3 + r4 * r4 + r5 * r5
 
     def misfit(self, measured: list[float], model: list[float]) -> float:
         """Relative RMS misfit (:meth:`OnePressCheck._misfit`)."""
@@ -229,19 +271,32 @@ class OneFrameCheck:
             return 0.0
         if not estimate[4] > 0.5:
             return 0.5
-        measured = self.measured(codes)
+        point = None if screen is None else (float(screen[0]), float(screen[1]), float(screen[2]))
+        return self.flag_inside(self.measured(codes), float(estimate[0]), float(estimate[1]), float(estimate[2]), point)
+
+    def flag_inside(
+        self, measured: list[float], x: float, y: float, force: float, screen: Sequence[float] | None = None
+    ) -> float:
+        """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
+        (floats of float32 values; ``screen`` likewise), from the frame's :meth:`measured`
+        conductances. (:meth:`misfit` and :func:`_log_force` written out: the misfit's scale is
+        the frame's, worked out once.)"""
+        threshold, column, conductance_at, cost = self.threshold, self.column, self.conductance_at, self._cost
+        sqrt, log, floor = math.sqrt, math.log, _FORCE_FLOOR
+        scale = self._scale(measured)
         if screen is not None:  # the screen's point first, as the batch path
-            at_screen = self.conductance(float(screen[0]), float(screen[1]), _log_force(screen[2]))
-            if self.misfit(measured, at_screen) <= self.threshold:
+            sx, sy, sforce = screen
+            at_screen = conductance_at(sx, sy, column(log(floor if floor > sforce else sforce)))
+            if sqrt(cost(measured, at_screen) / 6) / scale <= threshold:
                 return 1.0
-        start = [float(estimate[0]), float(estimate[1]), _log_force(estimate[2])]
-        base = self.conductance(*start)
-        if self.misfit(measured, base) <= self.threshold:
+        start = [x, y, log(floor if floor > force else force)]
+        base = conductance_at(x, y, column(start[2]))
+        if sqrt(cost(measured, base) / 6) / scale <= threshold:
             return 1.0
-        if self.refined_misfit(measured, start, self.threshold, base) <= self.threshold:
+        if self.refined_misfit(measured, start, threshold, base) <= threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
         total = sum(weights)
         cx = sum(w * p[0] for w, p in zip(weights, self.positions, strict=True)) / total
         cy = sum(w * p[1] for w, p in zip(weights, self.positions, strict=True)) / total
-        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], self.threshold) <= self.threshold else 0.0
+        return 1.0 if self.refined_misfit(measured, [cx, cy, start[2]], threshold) <= threshold else 0.0

@@ -47,10 +47,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from array import array
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy import optimize
@@ -58,7 +57,7 @@ from scipy import optimize
 from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.estimators.classical.triangulation_one_frame import OneFrameTriangulation
+from tactile_learn.estimators.classical.triangulation_one_frame import OneFrameTriangulation, frame_predictor
 from tactile_learn.fsr_check import one_press_check
 from tactile_learn.validation.fsr import fsr_check
 
@@ -408,7 +407,6 @@ class TriangulationEstimator(Estimator):
                 # calibrated film (its readings are mapped): such frames take the batch path
                 self.input_check_.bounds(),
             )
-            self.frame_bounds_ = self.input_check_.bounds()
             # the one-press check's screen (fsr_check.OnePressCheck.p_one_press): the half-space
             # kernel's estimate is a poor start for the check (none of the latency set's presses
             # passes as it is; each needs one or two refinement steps), the fitted kernel's
@@ -427,60 +425,64 @@ class TriangulationEstimator(Estimator):
                     self.simulator_.loads_from_readings,
                 )
             )
+            self.frame_predictor_ = frame_predictor(self.one_frame_, self.check_.one_frame, self.screen_one_frame_)
+            self.one_frame_run_ = self._one_frame_run()
         return self
 
     def predict(self, X: np.ndarray) -> np.ndarray:
-        one: OneFrameTriangulation = self.prepared_state("one_frame_")
-        if type(X) is np.ndarray and X.shape == _ONE_FRAME and X.dtype is _FLOAT32:
-            # one frame (a stream): six whole codes the input check passes are keys of the
-            # code -> load table (NaN, inf, codes out of range or between two codes are not)
-            codes = X.tolist()[0]
-            table = one.load_of_code
-            try:
-                loads = [table[c] for c in codes]
-            except KeyError:  # the general single-frame check (non-whole codes) or its clear error
-                bounds = self.frame_bounds_
-                if bounds is not None:
-                    low, high, strict = bounds
-                    if all((low < c if strict else low <= c) and c < high for c in codes):
-                        return self._predict_frame(one, codes)
-            else:
-                return self._predict_loads(one, codes, loads)
+        try:
+            run = self.one_frame_run_
+        except AttributeError:  # not prepared: the clear error
+            run = self.prepared_state("one_frame_run_")
+        out = run(X)  # a plain single frame (a stream), or None
+        if out is not None:
+            return out
         return self.predict_checked(self.prepared_state("input_check_")(X))
+
+    def one_frame_run(self) -> Callable[[Any], np.ndarray | None] | None:
+        """``run(frames)``: :meth:`predict` of a plain single frame, ``None`` for anything else
+        (another type, shape or dtype, or a code that is no key of the code -> load table: NaN,
+        inf, out of range, not whole). :class:`~tactile_learn.frame_stream.FrameStream` tries it
+        first on every frame. ``None`` for a calibrated film (its readings are mapped first: no
+        code is a key), whose streams take the checked path."""
+        one: OneFrameTriangulation = self.prepared_state("one_frame_")
+        return self.one_frame_run_ if one.load_of_code else None
+
+    def _one_frame_run(self) -> Callable[[Any], np.ndarray | None]:
+        """:meth:`one_frame_run`, built in :meth:`prepare`: a frame of six whole codes that the
+        input check passes as they are is six keys of the code -> load table (the look-up is the
+        check), then :func:`.triangulation_one_frame.frame_predictor`."""
+        table, predict_loads = self.one_frame_.load_of_code, self.frame_predictor_
+
+        def run(frames: Any) -> np.ndarray | None:
+            if type(frames) is np.ndarray and frames.shape == _ONE_FRAME and frames.dtype is _FLOAT32:
+                codes = frames.tolist()[0]
+                c0, c1, c2, c3, c4, c5 = codes
+                try:
+                    loads = [table[c0], table[c1], table[c2], table[c3], table[c4], table[c5]]
+                except KeyError:  # the general check: its clear error, or the general path
+                    return None
+                return predict_loads(codes, loads, True)
+            return None
+
+        return run
 
     def _predict_frame(self, one: OneFrameTriangulation, codes: list[float]) -> np.ndarray:
         """(1, 6) for one checked frame of nominal-film codes, on Python floats."""
-        return self._predict_loads(one, codes, one.loads(codes))
-
-    def _predict_loads(self, one: OneFrameTriangulation, codes: list[float], loads: list[float]) -> np.ndarray:
-        """:meth:`_predict_frame` from the frame's disc loads (looked up already)."""
-        choice = one.choice(loads)
-        if choice is None:  # no contact: every column 0
-            return np.zeros((1, 6), dtype=np.float32)
-        estimate = one.estimate_choice(choice)
-        # the check reads the float32 estimate, as in the batch path (array "f": float32 rounding,
-        # to nearest as numpy's cast; beyond float32's range inf, as numpy)
-        rounded = array("f", estimate).tolist()
-        screen: OneFrameTriangulation | None = self.screen_one_frame_
-        if screen is None or not estimate[4] > 0.5:  # no screen, or a frame the check leaves alone
-            flag = self.check_.one_frame.p_one_press(codes, rounded)
-        else:  # the fitted kernel's solution: the same film, geometry and valid load share the choice
-            point = array("f", screen.estimate_choice(choice)).tolist()
-            flag = self.check_.one_frame.p_one_press(codes, rounded, point)
-        out = np.empty((1, 6), dtype=np.float32)
-        out[0] = [*rounded, flag]  # (float32 values already: exact)
-        return out
+        predict_loads: Callable[..., np.ndarray] = self.frame_predictor_
+        return predict_loads(codes, one.loads(codes))
 
     def frame_runner(self) -> Callable[[np.ndarray], np.ndarray]:
         """A function of one validated frame ``(1, 6)`` giving what :meth:`predict_checked` gives,
         with the single-frame state looked up once (:class:`~tactile_learn.frame_stream.FrameStream`
         calls it for the single frames of an ungated stream, after its own check)."""
         one: OneFrameTriangulation = self.prepared_state("one_frame_")
-        predict_loads, loads = self._predict_loads, one.loads
+        predict_loads: Callable[..., np.ndarray] = self.frame_predictor_
+        loads = one.loads
 
         def run_frame(x: np.ndarray) -> np.ndarray:
             codes = x.tolist()[0]
-            return predict_loads(one, codes, loads(codes))
+            return predict_loads(codes, loads(codes))
 
         return run_frame
 

@@ -17,6 +17,8 @@ last bit from numpy's), which the tests check on many frames.
 from __future__ import annotations
 
 import math
+import struct
+from array import array
 from collections.abc import Callable
 from operator import itemgetter
 from typing import TYPE_CHECKING
@@ -25,12 +27,9 @@ import numpy as np
 
 if TYPE_CHECKING:  # the batch module imports this one
     from tactile_learn.estimators.classical.triangulation import LoadModel, TriangleGeometry
+    from tactile_learn.fsr_one_frame import OneFrameCheck
 
-__all__ = ["Choice", "OneFrameTriangulation"]
-
-#: a frame's triangle choice (:meth:`OneFrameTriangulation.choice`): each triangle's three loads,
-#: each triangle's valid sensors, the most of them, the largest summed load
-Choice = tuple[list[tuple[float, float, float]], list[int], int, float]
+__all__ = ["OneFrameTriangulation", "frame_predictor"]
 
 
 def _argmax(values: list[float] | tuple[float, ...]) -> int:
@@ -63,6 +62,18 @@ class OneFrameTriangulation:
         self.neg_inv_m = -1.0 / model.m
         self.h2 = model.h_mm**2
         self.on_axis = max(model.on_axis, 1e-300)
+        #: what _solve reads on every call, in one tuple (one attribute look-up)
+        self._constants = (
+            self.min_load,
+            self.low_load**self.neg_inv_m,  # g of a sensor below the valid load (low_load >= 1e-9)
+            self.neg_inv_m,
+            self.on_axis,
+            self.inside_depth,
+            float(model.m),
+            float(model.c),
+            float(model.force_scale),
+            float(model.force_exponent),
+        )
         self.loads_of_codes_array = loads_of_codes
         self.loads_of_codes = loads_of_codes.tolist()
         self.loads_from_readings = loads_from_readings
@@ -78,18 +89,33 @@ class OneFrameTriangulation:
                 for code, load in enumerate(self.loads_of_codes)
                 if (low < code if strict else low <= code) and code < high
             }
-        self.triangles = []
+        #: each triangle's constants, flat: its sensors, the closed form's matrix and vectors, its
+        #: first corner, the barycentric matrix, gamma, its corners
+        self.triangles: list[tuple] = []
         for t in range(4):
-            a_inv, u, x0, corners, bary = (
-                geometry.a_inv[t].tolist(),
-                geometry.u[t].tolist(),
-                geometry.x0[t].tolist(),
-                geometry.corners[t].tolist(),
-                geometry.bary_inv[t].tolist(),
-            )
+            (a00, a01), (a10, a11) = geometry.a_inv[t].tolist()
+            (b00, b01), (b10, b11) = geometry.bary_inv[t].tolist()
+            corners = geometry.corners[t].tolist()
             gamma = float((geometry.u[t] ** 2).sum() + self.h2)  # > 0
-            self.triangles.append((tuple(int(i) for i in geometry.tris[t]), a_inv, u, x0, corners, bary, gamma))
-        self._pick = [itemgetter(*tri[0]) for tri in self.triangles]  # a triangle's three loads
+            self.triangles.append(
+                (
+                    itemgetter(*(int(i) for i in geometry.tris[t])),
+                    a00, a01, a10, a11,
+                    *geometry.u[t].tolist(),
+                    *geometry.x0[t].tolist(),
+                    *corners[0],
+                    b00, b01, b10, b11,
+                    gamma,
+                    corners,
+                )
+            )  # fmt: skip
+        #: by the frame's valid sensors (bit k: sensor k at or above the valid load), the triangles
+        #: with the most of them: the winner is one of these (see :meth:`estimate_valid`)
+        sensors = [set(int(i) for i in tri) for tri in geometry.tris]
+        self.candidates: list[tuple[int, ...]] = []
+        for mask in range(1 << 6):  # six sensors
+            counts = [sum(mask >> i & 1 for i in tri) for tri in sensors]
+            self.candidates.append(tuple(t for t, n in enumerate(counts) if n == max(counts)))
 
     def loads(self, codes: list[float]) -> list[float]:
         """Disc loads (N) of six ADC codes: whole codes from the table, others by the batch inverse."""
@@ -104,37 +130,29 @@ class OneFrameTriangulation:
             return [table[int(c)] for c in codes]
         return [float(v) for v in self.loads_from_readings(np.array([codes]))[0]]
 
-    def _force(self, k: float) -> float:
-        """:meth:`LoadModel.force` on a float; an overflow is inf, as numpy's (then zeroed)."""
-        model = self.model
-        try:
-            raw = max(k, 0.0) ** model.m / model.c
-            return float(model.force_scale * raw**model.force_exponent)
-        except OverflowError:
-            return math.inf
-
-    def _solve(self, f: tuple[float, float, float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
+    def _solve(self, loads: list[float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
         """One triangle's closed form with the fallbacks (``solve_triangles`` for one frame):
-        x, y, force, valid sensors, inside, depth, summed load."""
-        _, a_inv, u, x0, corners, bary, gamma = tri
-        f0, f1, f2 = f
-        min_load = self.min_load
+        x, y, force, valid sensors, inside, depth, summed load. (``min`` and ``max`` of two or
+        three numbers written out as comparisons: the same first-of-equals and NaN behaviour.)"""
+        pick, a00, a01, a10, a11, u0, u1, x00, x01, cx, cy, b00, b01, b10, b11, gamma, corners = tri
+        min_load, g_low, power, on_axis, inside_depth, m, c, scale, exponent = self._constants
+        f0, f1, f2 = pick(loads)
         n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
         total = f0 + f1 + f2
         if n_valid <= 1:  # put the contact on the strongest sensor (the batch path's fallback)
+            f = (f0, f1, f2)
             strongest = _argmax(f)
-            force = max(f[strongest], 0.0) / self.on_axis
+            force = max(f[strongest], 0.0) / on_axis
             x, y = corners[strongest]
             return x, y, (force if math.isfinite(force) else 0.0), n_valid, False, 0.0, total
-        low, power = self.low_load, self.neg_inv_m
-        g0 = max(f0 if f0 >= min_load else low, 1e-9) ** power
-        dg0 = max(f1 if f1 >= min_load else low, 1e-9) ** power - g0
-        dg1 = max(f2 if f2 >= min_load else low, 1e-9) ** power - g0
-        (a00, a01), (a10, a11) = a_inv
+        # g = max(f or the low load, 1e-9) ** power, with the low load's worked out once
+        g0 = (1e-9 if f0 < 1e-9 else f0) ** power if f0 >= min_load else g_low
+        dg0 = ((1e-9 if f1 < 1e-9 else f1) ** power if f1 >= min_load else g_low) - g0
+        dg1 = ((1e-9 if f2 < 1e-9 else f2) ** power if f2 >= min_load else g_low) - g0
         x1x = a00 * dg0 + a01 * dg1
         x1y = a10 * dg0 + a11 * dg1
         alpha = x1x * x1x + x1y * x1y
-        beta = 2.0 * (u[0] * x1x + u[1] * x1y) - g0
+        beta = 2.0 * (u0 * x1x + u1 * x1y) - g0
         disc = beta * beta - 4.0 * alpha * gamma
         if alpha <= 1e-12 * max(beta * beta, 1e-300):  # three equal loads: the linear root
             k1 = k2 = -gamma / (beta if abs(beta) > 1e-300 else -1e-300)
@@ -143,22 +161,37 @@ class OneFrameTriangulation:
         else:
             sq = math.sqrt(disc)
             k1, k2 = (-beta - sq) / (2 * alpha), (-beta + sq) / (2 * alpha)
-        (cx, cy), (b00, b01), (b10, b11) = corners[0], bary[0], bary[1]
         # the first root, then the second where it lies deeper inside (the batch path's argmax:
-        # the first of equals)
-        x, y = x0[0] + k1 * x1x, x0[1] + k1 * x1y
+        # the first of equals); depth: the smallest barycentric coordinate (> 0 inside)
+        x, y = x00 + k1 * x1x, x01 + k1 * x1y
         ex, ey = x - cx, y - cy
         l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-        depth = min(1.0 - (l1 + l2), l1, l2) if k1 > 0 else -math.inf  # K = (C P)^(1/m) > 0
+        depth = 1.0 - (l1 + l2)
+        if l1 < depth:
+            depth = l1
+        if l2 < depth:
+            depth = l2
+        if not k1 > 0:  # K = (C P)^(1/m) > 0
+            depth = -math.inf
         k = k1
-        x2, y2 = x0[0] + k2 * x1x, x0[1] + k2 * x1y
-        ex, ey = x2 - cx, y2 - cy
-        l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-        depth2 = min(1.0 - (l1 + l2), l1, l2) if k2 > 0 else -math.inf
-        if depth2 > depth:
-            k, x, y, depth = k2, x2, y2, depth2
-        force = self._force(k)
-        return x, y, (force if math.isfinite(force) else 0.0), n_valid, depth >= self.inside_depth, depth, total
+        if k2 != k1:  # (equal roots: the same point, the first wins)
+            x2, y2 = x00 + k2 * x1x, x01 + k2 * x1y
+            ex, ey = x2 - cx, y2 - cy
+            l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
+            depth2 = 1.0 - (l1 + l2)
+            if l1 < depth2:
+                depth2 = l1
+            if l2 < depth2:
+                depth2 = l2
+            if not k2 > 0:
+                depth2 = -math.inf
+            if depth2 > depth:
+                k, x, y, depth = k2, x2, y2, depth2
+        try:  # LoadModel.force on a float; an overflow is inf, as numpy's (then zeroed)
+            force = scale * ((0.0 if k < 0.0 else k) ** m / c) ** exponent  # (max(k, 0.0))
+        except OverflowError:
+            force = math.inf
+        return x, y, (force if math.isfinite(force) else 0.0), n_valid, depth >= inside_depth, depth, total
 
     def estimate(self, codes: list[float]) -> list[float]:
         """The five columns of one frame (``x, y, force, p_contact, p_inside``)."""
@@ -166,54 +199,46 @@ class OneFrameTriangulation:
 
     def estimate_loads(self, loads: list[float]) -> list[float]:
         """:meth:`estimate` from the frame's six disc loads (N)."""
-        choice = self.choice(loads)
-        return [0.0, 0.0, 0.0, 0.0, 0.0] if choice is None else self.estimate_choice(choice)
+        valid = self.valid(loads)
+        return [0.0, 0.0, 0.0, 0.0, 0.0] if not valid else self.estimate_valid(loads, valid)
 
-    def choice(self, loads: list[float]) -> Choice | None:
-        """What the triangle choice reads besides the load model: every triangle's three loads and
-        valid sensors, the most valid sensors of any triangle and the largest summed load; none
-        for a frame without contact. (Another load model on the same film, geometry and valid load
-        shares it: :meth:`estimate_choice` of either.)"""
-        min_load = self.min_load
-        if not max(loads) >= min_load:  # no contact: all outputs 0
-            return None
-        picked = [pick(loads) for pick in self._pick]
-        valid, most, top = [], 0, 1e-300  # every triangle's valid sensors; the largest summed load
-        for f0, f1, f2 in picked:
-            n_valid = (f0 >= min_load) + (f1 >= min_load) + (f2 >= min_load)
-            valid.append(n_valid)
-            most = n_valid if n_valid > most else most
-            total = f0 + f1 + f2  # as _solve sums it
-            top = total if total > top else top
-        return picked, valid, most, top
+    def valid(self, loads: list[float]) -> int:
+        """The frame's valid sensors as bits (bit k: sensor k's load at or above the valid load);
+        0 for a frame without contact. (Another load model on the same film, geometry and valid
+        load shares it: :meth:`estimate_valid` of either.)"""
+        m = self.min_load
+        l0, l1, l2, l3, l4, l5 = loads
+        return (l0 >= m) | (l1 >= m) << 1 | (l2 >= m) << 2 | (l3 >= m) << 3 | (l4 >= m) << 4 | (l5 >= m) << 5
 
-    def estimate_choice(self, choice: Choice) -> list[float]:
-        """The five columns of a frame with contact from its :meth:`choice`.
+    def estimate_valid(self, loads: list[float], valid: int) -> list[float]:
+        """The five columns of a frame with contact (``valid``: its :meth:`valid`, not 0).
 
         Only the triangles with the most valid sensors are solved: the winner's score counts its
         valid sensors in millions and everything else below 102,000, so no other triangle can win
         (and where only one triangle has the most, it wins without a score).
         """
-        picked, valid, most, top = choice
-        if valid.count(most) == 1:  # one candidate (most frames with contact)
-            t = valid.index(most)
-            best = self._solve(picked[t], self.triangles[t])
+        candidates = self.candidates[valid]
+        if len(candidates) == 1:  # one candidate (most frames with contact)
+            x, y, force, n_valid, inside, _, _ = self._solve(loads, self.triangles[candidates[0]])
         else:
-            best = self._best_scored(picked, valid, most, top)
-        x, y, force, n_valid, inside, _, _ = best
+            x, y, force, n_valid, inside, _, _ = self._best_scored(loads, candidates)
         return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
 
     def _best_scored(
-        self, picked: list[tuple[float, float, float]], valid: list[int], most: int, top: float
+        self, loads: list[float], candidates: tuple[int, ...]
     ) -> tuple[float, float, float, int, bool, float, float]:
         """The best-scoring solution among the triangles with the most valid sensors."""
+        # the summed loads are scaled by the largest of all four triangles' (as the batch path)
+        top = 1e-300
+        for tri in self.triangles:
+            f0, f1, f2 = tri[0](loads)
+            total = f0 + f1 + f2  # as _solve sums it
+            top = total if total > top else top
         best: tuple[float, float, float, int, bool, float, float] | None = None
         best_score = 0.0
         solve, triangles = self._solve, self.triangles
-        for t in range(4):
-            if valid[t] != most:
-                continue
-            s = solve(picked[t], triangles[t])
+        for t in candidates:
+            s = solve(loads, triangles[t])
             # most valid sensors, then inside, then the largest summed load (rounded as np.round
             # does: scaled, rounded half to even), then the deepest inside; the first of equals
             depth = s[5]
@@ -223,3 +248,60 @@ class OneFrameTriangulation:
                 best, best_score = s, score
         assert best is not None  # the triangles with the most valid sensors: at least one
         return best
+
+
+_FLOAT32 = np.dtype(np.float32)
+_ROW = (1, 6)  # a single frame's result: x, y, force, p_contact, p_inside, p_one_press
+# into and out of a float32 row's buffer: native float32, numpy's cast (round to nearest)
+_PACK_ROW: Callable[..., None] = struct.Struct("6f").pack_into
+_PACK_FLAG: Callable[..., None] = struct.Struct("f").pack_into
+_UNPACK_POINT: Callable[..., tuple[float, ...]] = struct.Struct("3f").unpack_from
+_POINT = struct.Struct("3f")
+
+
+def _float32_point(x: float, y: float, force: float) -> tuple[float, ...]:
+    """``x, y, force`` rounded to float32 as numpy rounds them (beyond float32's range: inf)."""
+    try:
+        return _POINT.unpack(_POINT.pack(x, y, force))
+    except OverflowError:
+        return tuple(array("f", (x, y, force)))
+
+
+def frame_predictor(
+    one: OneFrameTriangulation, check: OneFrameCheck, screen: OneFrameTriangulation | None = None
+) -> Callable[..., np.ndarray]:
+    """The single-frame answer ``(1, 6)`` float32 (the batch path's ``predict_checked`` for one
+    frame) from the frame's six codes and disc loads (``whole``: the codes are known to be whole
+    ADC codes, as the keys of the code -> load table are): the estimate, rounded to float32 in the
+    output row, the one-press check on the rounded estimate (as the batch path reads it) and, for
+    the half-space kernel, the fitted kernel's solution of the same loads as the check's screen
+    (``screen``: the same film, geometry and valid load, so the same valid sensors)."""
+    valid_of, estimate_valid, flag_inside = one.valid, one.estimate_valid, check.flag_inside
+    measured_of, measured_of_whole = check.measured, check.measured_of_whole
+    screen_estimate = None if screen is None else screen.estimate_valid
+    zeros, empty, min_load = np.zeros, np.empty, one.min_load
+
+    def predict_loads(codes: list[float], loads: list[float], whole: bool = False) -> np.ndarray:
+        l0, l1, l2, l3, l4, l5 = loads  # (valid_of written out: most frames of a stream stop here)
+        if l0 < min_load and l1 < min_load and l2 < min_load and l3 < min_load and l4 < min_load and l5 < min_load:
+            return zeros(_ROW, _FLOAT32)  # no contact: every column 0
+        valid = valid_of(loads)
+        if not valid:  # (a NaN load: not a valid sensor either)
+            return zeros(_ROW, _FLOAT32)
+        x, y, force, _, p_inside = estimate_valid(loads, valid)
+        out = empty(_ROW, _FLOAT32)
+        try:
+            _PACK_ROW(out, 0, x, y, force, 1.0, p_inside, 0.5)
+        except OverflowError:  # beyond float32's range: inf, as numpy's cast
+            out[0] = array("f", (x, y, force, 1.0, p_inside, 0.5)).tolist()
+        if p_inside > 0.5:  # (else 0.5: outside the triangles or undecided, not checked)
+            x, y, force = _UNPACK_POINT(out)
+            point = None
+            if screen_estimate is not None:
+                sx, sy, sforce, _, _ = screen_estimate(loads, valid)
+                point = _float32_point(sx, sy, sforce)
+            measured = measured_of_whole(codes) if whole else measured_of(codes)
+            _PACK_FLAG(out, 20, flag_inside(measured, x, y, force, point))
+        return out
+
+    return predict_loads
