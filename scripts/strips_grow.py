@@ -11,6 +11,9 @@ one does, so training only adds:
     python scripts/strips_grow.py models/strips16.pt --size deep --out runs/deep_init.pt
     python scripts/strips_grow.py models/strips16.pt --size wide --out runs/wide_init.pt
     tactile-learn train --task strips --size wide --init runs/wide_init.pt ...
+
+A size that only adds the consistency step (``wide`` -> ``wide_consistent``) takes the weights as
+they are (the step has none); its map is then the source's after one step through the forward model.
 """
 
 from __future__ import annotations

@@ -4,7 +4,11 @@ Every general strip model (architecture 2) is exported with two more outputs per
 inside the ONNX graph in a few microseconds (``tactile_learn.strips_consistency``):
 
 - ``residual``: its map pushed back through the sensor's forward model and compared with the
-  measured strip loads, in units of the readout noise (``residual_sigma``);
+  measured strip loads, in units of the readout noise (``residual_sigma``); a model whose graph
+  ends in a consistency step (``tactile_learn.nets.strips_consistent``) reports the residual of the
+  network's map before that step - the step pulls every map toward its loads, so the map before it
+  is what tells a familiar frame from a strange one (the card's ``consistency.definition`` says which;
+  ``eval`` reports the residual of the returned estimate for every method);
 - ``balance``: the mismatch between the row strips' and the column strips' total loads, which carry
   the same pressure on a healthy sensor (a map-free check of the readings themselves).
 

@@ -31,6 +31,7 @@ from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
+from tactile_learn.nets.strips_consistent import RATIO_CAP, RATIO_EPS
 from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
 __all__ = ["DeployedStripNet", "deploy"]
@@ -77,7 +78,9 @@ class _DeployedAxial(nn.Module):
 
 class DeployedStripNet(nn.Module):
     """``GeneralStripNet`` (no correction step) rearranged for export; outputs the map, its readings
-    residual and the readings' balance (``StripResidual``)."""
+    residual and the readings' balance (``StripResidual``). A network with the consistency step
+    (``nets.strips_consistent``) takes it on the map; the residual is then the one of the map
+    before the step, as ``GeneralStripNetWithResidual`` reports it."""
 
     total_weights: torch.Tensor
     diff_weights: torch.Tensor
@@ -86,6 +89,8 @@ class DeployedStripNet(nn.Module):
     stress: torch.Tensor
     noise_weights: torch.Tensor
     numerator: torch.Tensor
+    sums_t: torch.Tensor
+    stress_t: torch.Tensor
 
     def __init__(self, net: GeneralStripNet, scene: Scene) -> None:
         super().__init__()
@@ -110,6 +115,7 @@ class DeployedStripNet(nn.Module):
         self.hidden = hidden
         self.blocks = nn.Sequential(*[_DeployedAxial(b) for b in list(net.blocks)])
         self._head(net, hidden)
+        self.consistent = net.consistency is not None
         self._checks(scene)
 
     def _readout(self, net: GeneralStripNet) -> None:
@@ -202,6 +208,9 @@ class DeployedStripNet(nn.Module):
         self.register_buffer("half_weights", torch.full((strips,), 0.5))
         self.register_buffer("total_weights", torch.full((strips, 1), 0.5))
         self.balance_floor = residual.floor
+        if self.consistent:  # the consistency step's back-projection, right-multiplied
+            self.register_buffer("sums_t", forward.sums.t().contiguous())
+            self.register_buffer("stress_t", forward.stress.t().contiguous())
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         n = self.n_rows
@@ -231,7 +240,30 @@ class DeployedStripNet(nn.Module):
         mass = nn.functional.softplus(self.head_mass(x))  # exported with its threshold: no overflow
         learned = torch.exp(self.head_scale(x).clamp(*self.clip)) * base + mass * self.unit
         flat = (learned.reshape(-1, n * n)) * total  # (B, N*M)
+        if self.consistent:
+            return self._consistent(flat, loads)
         return (flat.reshape(-1, n, n), *self._consistency(flat, loads, total))
+
+    def _consistent(self, flat: torch.Tensor, loads: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The map after ``ConsistencyStep``, the residual of the map before it (the step's model
+        loads: no second pass through the forward model) and the balance."""
+        stress = flat @ self.stress
+        if self.exponent_forward == 1.0:
+            gain = stress / (stress + self.p0_forward)
+            slope = (1.0 - gain) * (1.0 - gain)  # (1 - f)^2 without a power node
+        else:
+            gain = 1.0 - torch.pow(1.0 + stress / self.p0_forward, -self.exponent_forward)
+            slope = (1.0 - gain).pow((self.exponent_forward + 1.0) / self.exponent_forward)
+        model = gain @ self.sums
+        # measured and model loads stacked on a leading axis of 2 (one Concat, one Split: fewer
+        # nodes than a stack on axis 1 and two gathers); the slope broadcasts over that axis
+        both = (torch.cat([loads, model], dim=0) @ self.sums_t).reshape(2, -1, self.sums_t.shape[1])
+        sides = (both * slope) @ self.stress_t + RATIO_EPS  # (2, B, N*M): J^T L and J^T L_model
+        numerator, denominator = sides.chunk(2, dim=0)
+        ratio = (numerator / denominator).clamp(max=RATIO_CAP)  # (1, B, N*M)
+        residual = torch.linalg.vector_norm((model - loads) * self.noise_weights, dim=1)
+        balance = (loads @ self.diff_weights).abs() / (loads @ self.half_weights + self.balance_floor)
+        return (flat * ratio).reshape(-1, self.n_rows, self.n_cols), residual, balance
 
     def _consistency(
         self, flat: torch.Tensor, loads: torch.Tensor, total: torch.Tensor

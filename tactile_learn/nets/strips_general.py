@@ -35,8 +35,9 @@ from torch import nn
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 from tactile_learn.nets.strip_blocks import AxialBlock, StripLoads, strip_encoder
+from tactile_learn.nets.strips_consistent import ConsistencyStep
 
-__all__ = ["ARCH", "SIZES", "GeneralStripNet", "StripForward", "StripResidual", "law_inverse"]
+__all__ = ["ARCH", "CONSISTENT_SIZES", "SIZES", "GeneralStripNet", "StripForward", "StripResidual", "law_inverse"]
 
 #: architecture number stored in the normalisation statistics (the first architecture has none)
 ARCH = 2
@@ -61,6 +62,10 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
 }
 # the same networks on the classical estimate itself (the law's inverse, ``base`` below)
 SIZES |= {f"{name}_law": spec for name, spec in SIZES.items() if name != "corrected"}
+#: sizes whose map takes one ISRA step through the forward model (``nets.strips_consistent``); the
+#: step has no weights: the wide network's weights load into ``wide_consistent`` as they are
+CONSISTENT_SIZES = frozenset({"wide_consistent"})
+SIZES["wide_consistent"] = SIZES["wide"]
 
 
 class StripForward(nn.Module):
@@ -192,9 +197,13 @@ class GeneralStripNet(nn.Module):
             self.residual_crossings = _Crossings(enc // 2, hidden, physics=0)
             self.refine = AxialBlock(hidden)
             self.refine_head = _zero_conv(hidden, 2)
+        self.consistency: nn.Module | None = None
+        if size in CONSISTENT_SIZES:
+            self.consistency = ConsistencyStep(StripForward(scene))
 
     def _outputs(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
-        """(final map, first map or None, measured loads), maps in kPa."""
+        """(final map, first map or None, measured loads), maps in kPa; with the consistency step the
+        first map is the network's, before the step."""
         loads = self.loads(readings)
         rows, cols = loads[:, : self.n_rows], loads[:, self.n_rows :]
         total = 0.5 * (rows.sum(dim=1) + cols.sum(dim=1)) + self.total_floor  # (B,)
@@ -216,6 +225,8 @@ class GeneralStripNet(nn.Module):
         unit = self.pressure_scale * (total / self.total_ref)[:, None, None]
         classical = self._intersection(rows, cols, total)
         first = self._map(self.head(x), classical, unit)
+        if self.consistency is not None:
+            return self.consistency(first, loads), first, loads
         if not self.correct:
             return first, None, loads
         # one correction step: what the first map leaves unexplained, strip by strip
@@ -246,9 +257,10 @@ class GeneralStripNet(nn.Module):
         return self._outputs(readings)[0]
 
     def train_outputs(self, readings: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The final map and, with the correction step, the first (the loss supervises both)."""
+        """The final map and, with the correction step, the first (the loss supervises both); with
+        the consistency step the final map alone (the network learns what the step cannot fix)."""
         final, first, _ = self._outputs(readings)
-        return (final,) if first is None else (final, first)
+        return (final,) if first is None or self.consistency is not None else (final, first)
 
 
 class GeneralStripNetWithResidual(nn.Module):
@@ -261,8 +273,11 @@ class GeneralStripNetWithResidual(nn.Module):
         self.residual = StripResidual(scene)
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        final, _, loads = self.net._outputs(readings)
-        return (final, *self.residual(self.forward_model(final), loads))
+        final, first, loads = self.net._outputs(readings)
+        # with the consistency step: the residual of the network's map before it (the step's own
+        # model loads, no second pass through the forward model; the flags keep their meaning)
+        checked = first if self.net.consistency is not None and first is not None else final
+        return (final, *self.residual(self.forward_model(checked), loads))
 
 
 def law_inverse(share: torch.Tensor, p0: float, exponent: float) -> torch.Tensor:

@@ -31,7 +31,11 @@ def test_the_cut_graph_gives_the_first_output_bit_for_bit(name: str) -> None:
     assert pruned is not None
     whole, cut = onnx.load(str(path)), onnx.load_from_string(pruned)
     assert [o.name for o in cut.graph.output] == [whole.graph.output[0].name]
-    assert len(cut.graph.node) <= len(whole.graph.node) - 10  # the check outputs' nodes are gone
+    # the check outputs' own nodes are gone (the residual's norm, the balance's absolute value); how
+    # many others go with them depends on the model (strips16's consistency step shares its forward model)
+    assert len(cut.graph.node) < len(whole.graph.node)
+    assert {"ReduceL2", "Abs"} <= {n.op_type for n in whole.graph.node}
+    assert not {"ReduceL2", "Abs"} & {n.op_type for n in cut.graph.node}
     assert cut.metadata_props == whole.metadata_props
     model = OnnxEstimator(path, threads=1).prepare()
     assert model.first_output_session_ is not model.session_
