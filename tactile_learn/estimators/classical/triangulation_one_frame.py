@@ -163,30 +163,15 @@ class OneFrameTriangulation:
             k1, k2 = (-beta - sq) / (2 * alpha), (-beta + sq) / (2 * alpha)
         # the first root, then the second where it lies deeper inside (the batch path's argmax:
         # the first of equals); depth: the smallest barycentric coordinate (> 0 inside)
-        x, y = x00 + k1 * x1x, x01 + k1 * x1y
-        ex, ey = x - cx, y - cy
-        l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-        depth = 1.0 - (l1 + l2)
-        if l1 < depth:
-            depth = l1
-        if l2 < depth:
-            depth = l2
-        if not k1 > 0:  # K = (C P)^(1/m) > 0
-            depth = -math.inf
-        k = k1
-        if k2 != k1:  # (equal roots: the same point, the first wins)
-            x2, y2 = x00 + k2 * x1x, x01 + k2 * x1y
-            ex, ey = x2 - cx, y2 - cy
+        k = x = y = depth = math.nan
+        for root in (k1, k2) if k2 != k1 else (k1,):  # (equal roots: the same point, the first wins)
+            root_x, root_y = x00 + root * x1x, x01 + root * x1y
+            ex, ey = root_x - cx, root_y - cy
             l1, l2 = b00 * ex + b01 * ey, b10 * ex + b11 * ey
-            depth2 = 1.0 - (l1 + l2)
-            if l1 < depth2:
-                depth2 = l1
-            if l2 < depth2:
-                depth2 = l2
-            if not k2 > 0:
-                depth2 = -math.inf
-            if depth2 > depth:
-                k, x, y, depth = k2, x2, y2, depth2
+            # K = (C P)^(1/m) > 0: a root that is not positive is no point
+            root_depth = min(1.0 - (l1 + l2), l1, l2) if root > 0 else -math.inf
+            if root is k1 or root_depth > depth:
+                k, x, y, depth = root, root_x, root_y, root_depth
         try:  # LoadModel.force on a float; an overflow is inf, as numpy's (then zeroed)
             force = scale * ((0.0 if k < 0.0 else k) ** m / c) ** exponent  # (max(k, 0.0))
         except OverflowError:
