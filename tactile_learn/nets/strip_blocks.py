@@ -93,3 +93,12 @@ def context_mlp(inputs: int, width: int, out: int) -> nn.Sequential:
         nn.ReLU(),
         nn.Linear(width, out),
     )
+
+
+def law_gain(stress: torch.Tensor, p0: float, exponent: float) -> torch.Tensor:
+    """The piezoresistive law's conductance gain of a segment under ``stress`` (kPa):
+    ``1 - (1 + s / p0)^-n``; at ``n = 1`` as ``s / (s + p0)``, without the cancellation (and no
+    power node in an exported graph)."""
+    if exponent == 1.0:
+        return stress / (stress + p0)
+    return 1.0 - torch.pow(1.0 + stress / p0, -exponent)

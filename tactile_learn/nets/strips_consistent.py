@@ -26,6 +26,8 @@ from typing import Any
 import torch
 from torch import nn
 
+from tactile_learn.nets.strip_blocks import law_gain
+
 __all__ = ["RATIO_CAP", "RATIO_EPS", "ConsistencyStep"]
 
 #: the step's largest factor on a cell. Dark cells far from any contact see ratios of noise over
@@ -64,10 +66,7 @@ class ConsistencyStep(nn.Module):
         """Model loads (B, C) of flat maps (B, N*M) and the segments' conductance gains (B, S)."""
         # the truncated kernel can leave -1e-6-sized stress far from any load: clamped
         stress = (flat @ self.stress).clamp_min(0.0)
-        if self.exponent == 1.0:
-            gain = stress / (stress + self.p0)
-        else:
-            gain = 1.0 - torch.pow(1.0 + stress / self.p0, -self.exponent)
+        gain = law_gain(stress, self.p0, self.exponent)
         return gain @ self.sums, gain
 
     def forward(self, maps: torch.Tensor, loads: torch.Tensor) -> torch.Tensor:

@@ -31,6 +31,7 @@ from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
+from tactile_learn.nets.strip_blocks import law_gain
 from tactile_learn.nets.strips_consistent import RATIO_CAP, RATIO_EPS
 from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
@@ -248,11 +249,10 @@ class DeployedStripNet(nn.Module):
         """The map after ``ConsistencyStep``, the residual of the map before it (the step's model
         loads: no second pass through the forward model) and the balance."""
         stress = flat @ self.stress
+        gain = law_gain(stress, self.p0_forward, self.exponent_forward)
         if self.exponent_forward == 1.0:
-            gain = stress / (stress + self.p0_forward)
             slope = (1.0 - gain) * (1.0 - gain)  # (1 - f)^2 without a power node
         else:
-            gain = 1.0 - torch.pow(1.0 + stress / self.p0_forward, -self.exponent_forward)
             slope = (1.0 - gain).pow((self.exponent_forward + 1.0) / self.exponent_forward)
         model = gain @ self.sums
         # measured and model loads stacked on a leading axis of 2 (one Concat, one Split: fewer
@@ -272,10 +272,7 @@ class DeployedStripNet(nn.Module):
         no clamp before the stress; the truncated kernel's -1e-6-sized stress far from any load
         moves a gain by 1e-8 of p0, so none after it either)."""
         stress = flat @ self.stress
-        if self.exponent_forward == 1.0:
-            gain = stress / (stress + self.p0_forward)
-        else:
-            gain = 1.0 - torch.pow(1.0 + stress / self.p0_forward, -self.exponent_forward)
+        gain = law_gain(stress, self.p0_forward, self.exponent_forward)
         residual = torch.linalg.vector_norm((gain @ self.sums - loads) * self.noise_weights, dim=1)
         balance = (loads @ self.diff_weights).abs() / (loads @ self.half_weights + self.balance_floor)
         return residual, balance

@@ -34,7 +34,7 @@ from torch import nn
 
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
-from tactile_learn.nets.strip_blocks import AxialBlock, StripLoads, strip_encoder
+from tactile_learn.nets.strip_blocks import AxialBlock, StripLoads, law_gain, strip_encoder
 from tactile_learn.nets.strips_consistent import ConsistencyStep
 
 __all__ = ["ARCH", "CONSISTENT_SIZES", "SIZES", "GeneralStripNet", "StripForward", "StripResidual", "law_inverse"]
@@ -95,15 +95,10 @@ class StripForward(nn.Module):
         self.p0 = float(scene.sensor.piezo.p0_kpa)
         self.exponent = float(scene.sensor.piezo.exponent)
 
-    def _gain(self, stress: torch.Tensor) -> torch.Tensor:
-        if self.exponent == 1.0:
-            return stress / (stress + self.p0)  # 1 - (1 + s/p0)^-1, without the cancellation
-        return 1.0 - torch.pow(1.0 + stress / self.p0, -self.exponent)
-
     def forward(self, maps: torch.Tensor) -> torch.Tensor:
         x = maps.reshape(maps.shape[0], self.n_cells).clamp_min(0.0)
         # the truncated kernel can leave -1e-6-sized stress far from any load: clamped
-        return self._gain((x @ self.stress).clamp_min(0.0)) @ self.sums
+        return law_gain((x @ self.stress).clamp_min(0.0), self.p0, self.exponent) @ self.sums
 
 
 class StripResidual(nn.Module):
