@@ -345,24 +345,35 @@ class OneFrameCheck:
     ) -> float:
         """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
         (floats of float32 values; ``screen`` likewise), from the frame's :meth:`measured`
-        conductances. (:meth:`misfit` and :func:`_log_force` written out: the misfit's scale is
-        the frame's, worked out once.)"""
-        threshold, column, conductance_at, cost = self.threshold, self.column, self.conductance_at, self._cost
-        sqrt, log, floor = math.sqrt, math.log, _FORCE_FLOOR
+        conductances: the screen's point as it is (when given, as the batch path), else the
+        estimate as it is, then :meth:`flag_refined`."""
         scale = self._scale(measured)
-        if screen is not None:  # the screen's point first, as the batch path
-            sx, sy, sforce = screen
-            at_screen = conductance_at(sx, sy, column(log(floor if floor > sforce else sforce)))
-            if sqrt(cost(measured, at_screen) / 6) / scale <= threshold:
-                return 1.0
-        start = [x, y, log(floor if floor > force else force)]
-        sums = None
-        if screen is None:  # an estimate that mostly passes as it is (the fitted kernel's)
-            base = conductance_at(x, y, column(start[2]))
-        else:  # the half-space kernel's, which hardly ever does: the refinement's sums at once
-            base, sums = self.model_and_normal_equations(x, y, start[2], column(start[2]), measured)
-        if sqrt(cost(measured, base) / 6) / scale <= threshold:
+        if self.passes_at(measured, scale, *(screen if screen is not None else (x, y, force))):
             return 1.0
+        return self.flag_refined(measured, scale, x, y, force, screen is not None)
+
+    def passes_at(self, measured: list[float], scale: float, x: float, y: float, force: float) -> bool:
+        """Whether the press at ``x, y`` with ``force`` (floats of float32 values) fits the frame's
+        :meth:`measured` conductances as it is (``scale``: their :meth:`_scale`): :meth:`misfit`
+        at most the threshold, with :func:`_log_force` written out."""
+        floor = _FORCE_FLOOR
+        model = self.conductance_at(x, y, self.column(math.log(floor if floor > force else force)))
+        return math.sqrt(self._cost(measured, model) / 6) / scale <= self.threshold
+
+    def flag_refined(
+        self, measured: list[float], scale: float, x: float, y: float, force: float, screened: bool
+    ) -> float:
+        """The flag of a press whose first point as it is did not fit (``screened``: that was the
+        screen's point, and the estimate at ``x, y, force`` is still to be tried as it is; else it
+        was the estimate): the refinements from the estimate, then from the sensors'
+        conductance-weighted centroid. ``scale``: the :meth:`measured` conductances' :meth:`_scale`."""
+        threshold = self.threshold
+        start = [x, y, _log_force(force)]
+        base = sums = None
+        if screened:  # the half-space kernel's estimate, which hardly ever fits as it is: its sums at once
+            base, sums = self.model_and_normal_equations(x, y, start[2], self.column(start[2]), measured)
+            if math.sqrt(self._cost(measured, base) / 6) / scale <= threshold:
+                return 1.0
         if self.refined_misfit(measured, start, threshold, base, sums) <= threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]
