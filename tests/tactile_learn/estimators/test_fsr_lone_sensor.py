@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from synth.config import replace
-from synth.scene import load_scene
+from synth.scene import Scene, load_scene
 from synth.sensors import fsr
 from tactile_learn.estimators.classical.triangulation import FittedTriangulationEstimator, TriangulationEstimator
 from tactile_learn.frame_stream import FrameStream
@@ -71,7 +71,7 @@ def test_one_valid_sensor_keeps_one_candidate_triangle() -> None:
         assert k in tris[t]
 
 
-def _scene(**stimulus: object) -> object:
+def _scene(**stimulus: object) -> Scene:
     config = SCENE.sensor
     for key, value in stimulus.items():
         config = replace(config, f"stimulus.{key}", value)
