@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # the batch module imports this one
     from tactile_learn.estimators.classical.triangulation import LoadModel, TriangleGeometry
     from tactile_learn.fsr_one_frame import OneFrameCheck
 
-__all__ = ["OneFrameTriangulation", "frame_predictor"]
+__all__ = ["NO_CONTACT", "OneFrameTriangulation", "frame_predictor"]
 
 
 def _argmax(values: list[float] | tuple[float, ...]) -> int:
@@ -253,6 +253,10 @@ class OneFrameTriangulation:
 
 _FLOAT32 = np.dtype(np.float32)
 _ROW = (1, 6)  # a single frame's result: x, y, force, p_contact, p_inside, p_one_press
+#: the single-frame answer to a frame without contact (every column 0): one row that every such
+#: frame gets, read-only (a view of immutable bytes: its WRITEABLE flag cannot be set again), so no
+#: caller can change what the next frame gets; most frames of a stream are such frames
+NO_CONTACT: np.ndarray = np.frombuffer(bytes(4 * 6), dtype=_FLOAT32).reshape(_ROW)
 # into and out of a float32 row's buffer: native float32, numpy's cast (round to nearest)
 _PACK_ROW: Callable[..., None] = struct.Struct("6f").pack_into
 _PACK_FLAG: Callable[..., None] = struct.Struct("f").pack_into
@@ -288,14 +292,14 @@ def frame_predictor(
     screen_winner = None if screen is None else screen.winner
     measured_of, measured_of_whole, scale_of = check.measured, check.measured_of_whole, check._scale
     passes_at, flag_refined = check.passes_at, check.flag_refined
-    zeros, empty = np.zeros, np.empty
+    empty = np.empty
 
     def predict_loads(codes: list[float], loads: Sequence[float], whole: bool = False) -> np.ndarray:
         l0, l1, l2, l3, l4, l5 = loads
         m = min_load
         valid = (l0 >= m) | (l1 >= m) << 1 | (l2 >= m) << 2 | (l3 >= m) << 3 | (l4 >= m) << 4 | (l5 >= m) << 5
         if not valid:  # no contact (a NaN load is no valid sensor either): every column 0
-            return zeros(_ROW, _FLOAT32)
+            return NO_CONTACT
         lone = lone_sensor[valid]
         if lone is not None:  # one valid sensor: the contact on it (_solve's fallback), not checked
             k, x, y = lone

@@ -1,7 +1,8 @@
 """FSR single frames, seventh pass: a frame with one valid sensor is answered from that sensor at once
 (the contact on it with its load over the on-axis load per newton: what every candidate triangle's
 fallback gives), bit for bit as the batch path; the single-frame answer is one function for the
-whole frame and still equals the batch path on presses, two presses and flat indenters."""
+whole frame and still equals the batch path on presses, two presses and flat indenters; frames
+without contact share one read-only row of zeros."""
 
 from __future__ import annotations
 
@@ -97,3 +98,27 @@ def test_single_frames_and_streams_flag_as_the_batch_path(cls: type[Triangulatio
     np.testing.assert_array_equal(streamed, single)
     flagged = single[:, 5] < 0.5
     assert flagged[300:].mean() > 0.2 and flagged[:300][single[:300, 4] == 1].mean() < 0.05  # the check works
+
+
+@pytest.mark.parametrize("cls", [TriangulationEstimator, FittedTriangulationEstimator])
+def test_a_frame_without_contact_gets_one_read_only_row(cls: type[TriangulationEstimator]) -> None:
+    """Frames without contact share one row of zeros that nobody can change (the batch path and
+    contact frames still give new, writeable arrays)."""
+    est = cls(SCENE).prepare()
+    frames = np.ascontiguousarray(fsr.make_simulator(SCENE).simulate(200, np.random.default_rng(94))["readings"])
+    frames = frames.astype(np.float32)
+    batch = est.predict(frames)
+    idle = np.flatnonzero(batch[:, 3] == 0)
+    touched = np.flatnonzero(batch[:, 3] > 0)
+    assert len(idle) > 10 and len(touched) > 10
+    rows = [est.predict(frames[i : i + 1]) for i in idle] + [FrameStream(est).predict(frames[idle[0] : idle[0] + 1])]
+    rows.append(est.frame_runner()(frames[idle[0] : idle[0] + 1]))
+    for row in rows:
+        np.testing.assert_array_equal(row, np.zeros((1, 6), dtype=np.float32))
+        assert row.dtype == np.float32 and not row.flags.writeable
+        with pytest.raises(ValueError, match="read-only"):
+            row[0, 0] = 1.0
+        with pytest.raises(ValueError):
+            row.flags.writeable = True
+    assert est.predict(frames[touched[0] : touched[0] + 1]).flags.writeable and batch.flags.writeable
+    np.testing.assert_array_equal(est.predict(frames[idle[0] : idle[0] + 1]), 0.0)  # still zeros
