@@ -86,6 +86,8 @@ class OneFrameCheck:
         self.d_max = float(dg[-1])
         if dg[0] != 0.0 or ag[0] != 0.0:  # conductance_at leaves out the clamps below the grids' start
             raise ValueError("the film's load table must start at distance 0 and radius 0")
+        if float(transfer.table.min()) < 0.0:  # conductance_at leaves out the clamp of the load at 0
+            raise ValueError("the film's load table must not be negative")
         self.table = transfer.table.tolist()
         #: the table by column (radius): a force fixes two columns, read at two distances per sensor.
         #: Packed doubles rather than lists of floats: a sensor's four values lie in one or two
@@ -155,18 +157,17 @@ class OneFrameCheck:
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
-                per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
-            else:
+                load = float(self.transfer.per_newton(np.array(d), np.array(radius))) * force
+                if load < 0.0:
+                    load = 0.0
+            else:  # (the table and the weights are >= 0, the force > 0: the load is, no clamp)
                 di = d / dd  # (d - 0) / dd
                 if di > d_top:
                     di = d_top
                 i0 = int(di)
                 fi = di % 1.0  # di - i0 (di >= 0: both exact)
                 gi = 1.0 - fi
-                per_newton = near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj
-            load = per_newton * force
-            if load < 0.0:
-                load = 0.0
+                load = (near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj) * force
             z = (load - brk) / width
             if z > 37.0:  # the gate is exactly 1
                 out.append(leak + per_n * (sat * tanh(load / sat)))
@@ -202,7 +203,9 @@ class OneFrameCheck:
             if d > d_max:
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))  # as conductance_at
                 slope_d, slope_a = self._far_field_slope(d), 0.0
-            else:
+                if per_newton < 0.0:  # (load clamped at 0 below)
+                    per_newton = 0.0
+            else:  # (>= 0, as conductance_at's: no clamp)
                 di = d / dd
                 d_free = di < d_top  # else clamped to the table's last row: no slope in distance
                 if not d_free:
@@ -215,8 +218,6 @@ class OneFrameCheck:
                 slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd if d_free else 0.0
                 slope_a = (t01 - t00) * gi + (t11 - t10) * fi
             load = per_newton * force
-            if load < 0.0:
-                load = 0.0
             z = (load - brk) / width
             gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
             t = tanh(load * gate / sat)
