@@ -172,7 +172,10 @@ class OneFrameCheck:
             if z > 37.0:  # the gate is exactly 1
                 out.append(leak + per_n * (sat * tanh(load / sat)))
             else:
-                gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+                try:
+                    gate = 1.0 / (1.0 + exp(-z))  # expit
+                except OverflowError:  # exp(-z) beyond float64's range: numpy's inf gives 0
+                    gate = 0.0
                 out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
@@ -219,7 +222,13 @@ class OneFrameCheck:
                 slope_a = (t01 - t00) * gi + (t11 - t10) * fi
             load = per_newton * force
             z = (load - brk) / width
-            gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
+            if z > 37.0:
+                gate = 1.0
+            else:
+                try:
+                    gate = 1.0 / (1.0 + exp(-z))
+                except OverflowError:  # (as conductance_at)
+                    gate = 0.0
             t = tanh(load * gate / sat)
             g = leak + per_n * (sat * t)
             model.append(g)

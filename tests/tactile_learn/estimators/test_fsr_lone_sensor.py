@@ -122,3 +122,27 @@ def test_a_frame_without_contact_gets_one_read_only_row(cls: type[TriangulationE
             row.flags.writeable = True
     assert est.predict(frames[touched[0] : touched[0] + 1]).flags.writeable and batch.flags.writeable
     np.testing.assert_array_equal(est.predict(frames[idle[0] : idle[0] + 1]), 0.0)  # still zeros
+
+
+def test_a_gate_below_float64s_range_is_zero_on_both_paths() -> None:
+    """A film whose break lies far above its width (more than 709 widths): light loads put the
+    gate's exponent beyond float64, where the batch path's logistic gives exactly 0 (the
+    conductance is the leak alone); the one-frame model and its normal equations give the same."""
+    from tactile_learn.fsr_check import OnePressCheck
+
+    element = dataclasses.replace(SCENE.sensor.element, break_force_n=0.3, break_width_n=2e-4)
+    scene = dataclasses.replace(SCENE, sensor=dataclasses.replace(SCENE.sensor, element=element))
+    batch = OnePressCheck(scene).prepare()
+    one = batch.one_frame
+    assert one.break_n / one.width_n > 710.0
+    rng = np.random.default_rng(95)
+    params = np.column_stack([rng.uniform(-30.0, 30.0, (300, 2)), rng.uniform(-3.0, 3.0, 300)])
+    want = batch.conductance(params)
+    got = np.array([one.conductance(x, y, log_force) for x, y, log_force in params.tolist()])
+    gated_off = want == one.leak
+    assert gated_off.sum() > 100 and (~gated_off).sum() > 100
+    np.testing.assert_array_equal(got[gated_off], one.leak)  # exactly the leak where the batch's gate is 0
+    np.testing.assert_allclose(got, want, rtol=1e-13, atol=0.0)  # (tanh: libm's against numpy's)
+    for (x, y, log_force), row in zip(params.tolist()[:50], got[:50].tolist(), strict=True):
+        model, _ = one.model_and_normal_equations(x, y, log_force, one.column(log_force), row)
+        assert model == row
