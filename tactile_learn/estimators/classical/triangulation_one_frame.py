@@ -9,9 +9,16 @@ bit), the triangles' matrices as tuples, the load model's constants. The loads a
 code for the whole codes the input check passes (:attr:`OneFrameTriangulation.load_of_code`): six
 dictionary look-ups check a frame and give its loads at once (a NaN, an infinite, saturated,
 negative or fractional code is no key: such a frame takes the general check). A frame whose six
-loads are all below the valid load is answered at once (no contact, all zeros). The results equal the batch
-path's to rounding (the same formulas in the same order; ``pow`` and friends may differ in the
-last bit from numpy's), which the tests check on many frames.
+loads are all below the valid load is answered at once with :data:`NO_CONTACT` (all zeros, one
+read-only row); a frame with one valid sensor at once from that sensor (the contact on it: what
+every candidate triangle's fallback gives). The results equal the batch path's to rounding (the
+same formulas in the same order; ``pow`` and friends may differ in the last bit from numpy's),
+which the tests check on many frames.
+
+At batch 1 a frame's cost is the number of bytecodes it runs, and more so on the first frames after
+other work (a batch, another program): those run several times slower while the interpreter's
+paths refill. :func:`frame_predictor` is therefore one function for the whole frame, with the
+steps that wrap others written out.
 """
 
 from __future__ import annotations
