@@ -57,11 +57,7 @@ from scipy import optimize
 from synth.scene import Scene
 from synth.sensors import fsr
 from tactile_learn.estimators.base import Estimator
-from tactile_learn.estimators.classical.triangulation_one_frame import (
-    NO_CONTACT,
-    OneFrameTriangulation,
-    frame_predictor,
-)
+from tactile_learn.estimators.classical.triangulation_one_frame import OneFrameTriangulation, frame_predictor
 from tactile_learn.fsr_check import one_press_check
 from tactile_learn.validation.fsr import fsr_check
 
@@ -199,6 +195,7 @@ class TriangleGeometry:
 
 
 _ONE_FRAME, _FLOAT32 = (1, fsr.N_SENSORS), np.dtype(np.float32)  # a single frame that takes the fast path
+_ROW = (1, 6)  # a single frame's result
 _SCREEN_MODELS: dict[tuple[str, float], LoadModel] = {}
 
 
@@ -457,7 +454,7 @@ class TriangulationEstimator(Estimator):
         input check passes as they are is six keys of the code -> load table (the look-up is the
         check), then :func:`.triangulation_one_frame.frame_predictor`."""
         table, predict_loads, m = self.one_frame_.load_of_code, self.frame_predictor_, self.one_frame_.min_load
-        ndarray = np.ndarray
+        ndarray, zeros = np.ndarray, np.zeros
 
         def run(frames: Any) -> np.ndarray | None:
             if type(frames) is ndarray and frames.shape == _ONE_FRAME and frames.dtype is _FLOAT32:
@@ -468,7 +465,7 @@ class TriangulationEstimator(Estimator):
                 except KeyError:  # the general check: its clear error, or the general path
                     return None
                 if l0 < m and l1 < m and l2 < m and l3 < m and l4 < m and l5 < m:  # most frames of a stream
-                    return NO_CONTACT  # every column 0 (a read-only row)
+                    return zeros(_ROW, _FLOAT32)  # no contact: every column 0
                 return predict_loads(codes, (l0, l1, l2, l3, l4, l5), True)
             return None
 

@@ -9,11 +9,10 @@ bit), the triangles' matrices as tuples, the load model's constants. The loads a
 code for the whole codes the input check passes (:attr:`OneFrameTriangulation.load_of_code`): six
 dictionary look-ups check a frame and give its loads at once (a NaN, an infinite, saturated,
 negative or fractional code is no key: such a frame takes the general check). A frame whose six
-loads are all below the valid load is answered at once with :data:`NO_CONTACT` (all zeros, one
-read-only row); a frame with one valid sensor at once from that sensor (the contact on it: what
-every candidate triangle's fallback gives). The results equal the batch path's to rounding (the
-same formulas in the same order; ``pow`` and friends may differ in the last bit from numpy's),
-which the tests check on many frames.
+loads are all below the valid load is answered at once with a new row of zeros; a frame with one
+valid sensor at once from that sensor (the contact on it: what every candidate triangle's fallback
+gives). The results equal the batch path's to rounding (the same formulas in the same order;
+``pow`` and friends may differ in the last bit from numpy's), which the tests check on many frames.
 
 At batch 1 a frame's cost is the number of bytecodes it runs, and more so on the first frames after
 other work (a batch, another program): those run several times slower while the interpreter's
@@ -36,7 +35,7 @@ if TYPE_CHECKING:  # the batch module imports this one
     from tactile_learn.estimators.classical.triangulation import LoadModel, TriangleGeometry
     from tactile_learn.fsr_one_frame import OneFrameCheck
 
-__all__ = ["NO_CONTACT", "OneFrameTriangulation", "frame_predictor"]
+__all__ = ["OneFrameTriangulation", "frame_predictor"]
 
 
 def _argmax(values: list[float] | tuple[float, ...]) -> int:
@@ -260,10 +259,6 @@ class OneFrameTriangulation:
 
 _FLOAT32 = np.dtype(np.float32)
 _ROW = (1, 6)  # a single frame's result: x, y, force, p_contact, p_inside, p_one_press
-#: the single-frame answer to a frame without contact (every column 0): one row that every such
-#: frame gets, read-only (a view of immutable bytes: its WRITEABLE flag cannot be set again), so no
-#: caller can change what the next frame gets; most frames of a stream are such frames
-NO_CONTACT: np.ndarray = np.frombuffer(bytes(4 * 6), dtype=_FLOAT32).reshape(_ROW)
 # into and out of a float32 row's buffer: native float32, numpy's cast (round to nearest)
 _PACK_ROW: Callable[..., None] = struct.Struct("6f").pack_into
 _PACK_FLAG: Callable[..., None] = struct.Struct("f").pack_into
@@ -299,14 +294,14 @@ def frame_predictor(
     screen_winner = None if screen is None else screen.winner
     measured_of, measured_of_whole, scale_of = check.measured, check.measured_of_whole, check._scale
     passes_at, flag_refined = check.passes_at, check.flag_refined
-    empty = np.empty
+    zeros, empty = np.zeros, np.empty
 
     def predict_loads(codes: list[float], loads: Sequence[float], whole: bool = False) -> np.ndarray:
         l0, l1, l2, l3, l4, l5 = loads
         m = min_load
         valid = (l0 >= m) | (l1 >= m) << 1 | (l2 >= m) << 2 | (l3 >= m) << 3 | (l4 >= m) << 4 | (l5 >= m) << 5
         if not valid:  # no contact (a NaN load is no valid sensor either): every column 0
-            return NO_CONTACT
+            return zeros(_ROW, _FLOAT32)
         lone = lone_sensor[valid]
         if lone is not None:  # one valid sensor: the contact on it (_solve's fallback), not checked
             k, x, y = lone

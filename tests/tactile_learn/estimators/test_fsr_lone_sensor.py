@@ -1,8 +1,7 @@
 """FSR single frames, seventh pass: a frame with one valid sensor is answered from that sensor at once
 (the contact on it with its load over the on-axis load per newton: what every candidate triangle's
 fallback gives), bit for bit as the batch path; the single-frame answer is one function for the
-whole frame and still equals the batch path on presses, two presses and flat indenters; frames
-without contact share one read-only row of zeros."""
+whole frame and still equals the batch path on presses, two presses and flat indenters."""
 
 from __future__ import annotations
 
@@ -101,27 +100,21 @@ def test_single_frames_and_streams_flag_as_the_batch_path(cls: type[Triangulatio
 
 
 @pytest.mark.parametrize("cls", [TriangulationEstimator, FittedTriangulationEstimator])
-def test_a_frame_without_contact_gets_one_read_only_row(cls: type[TriangulationEstimator]) -> None:
-    """Frames without contact share one row of zeros that nobody can change (the batch path and
-    contact frames still give new, writeable arrays)."""
+def test_a_frame_without_contact_gets_its_own_writeable_row(cls: type[TriangulationEstimator]) -> None:
+    """Frames without contact get a new row of zeros each, writeable as every other result: a caller
+    that writes into one result changes no other (estimator contract: outputs never alias state)."""
     est = cls(SCENE).prepare()
     frames = np.ascontiguousarray(fsr.make_simulator(SCENE).simulate(200, np.random.default_rng(94))["readings"])
     frames = frames.astype(np.float32)
     batch = est.predict(frames)
     idle = np.flatnonzero(batch[:, 3] == 0)
-    touched = np.flatnonzero(batch[:, 3] > 0)
-    assert len(idle) > 10 and len(touched) > 10
-    rows = [est.predict(frames[i : i + 1]) for i in idle] + [FrameStream(est).predict(frames[idle[0] : idle[0] + 1])]
-    rows.append(est.frame_runner()(frames[idle[0] : idle[0] + 1]))
-    for row in rows:
-        np.testing.assert_array_equal(row, np.zeros((1, 6), dtype=np.float32))
-        assert row.dtype == np.float32 and not row.flags.writeable
-        with pytest.raises(ValueError, match="read-only"):
-            row[0, 0] = 1.0
-        with pytest.raises(ValueError):
-            row.flags.writeable = True
-    assert est.predict(frames[touched[0] : touched[0] + 1]).flags.writeable and batch.flags.writeable
-    np.testing.assert_array_equal(est.predict(frames[idle[0] : idle[0] + 1]), 0.0)  # still zeros
+    assert len(idle) > 10 and (batch[:, 3] > 0).sum() > 10
+    frame = frames[idle[0] : idle[0] + 1]
+    for call in (est.predict, FrameStream(est).predict, est.frame_runner()):
+        first = call(frame)
+        assert first.dtype == np.float32 and first.shape == (1, 6) and first.flags.writeable
+        first[0, :] = 7.0  # the caller's own array
+        np.testing.assert_array_equal(call(frame), np.zeros((1, 6), dtype=np.float32))
 
 
 def test_a_gate_below_float64s_range_is_zero_on_both_paths() -> None:
