@@ -1,0 +1,95 @@
+"""``train --device``: the network (and a distillation teacher) on a CUDA GPU, everything else as on the CPU."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch", reason="torch (training extra) is not installed")
+
+from synth.dataset import generate
+from synth.errors import ConfigError
+from synth.scene import load_scene
+from tactile_learn.checkpoints import load_torch
+from tactile_learn.cli import main
+from tactile_learn.train import TrainConfig
+
+CUDA = torch.cuda.is_available()
+
+
+@pytest.fixture(scope="module")
+def folders(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("device")
+    generate(load_scene("strips16_mixed"), 100, 2, root / "mixed", shard_size=50)
+    generate(load_scene("strips16"), 100, 1, root / "spheres", shard_size=50)
+    generate(load_scene("strips16_mixed"), 50, 4, root / "val")  # validation shares the first folder's scene
+    return root
+
+
+def _train(folders: Path, out: str, *extra: str) -> dict:
+    argv = ["train", "--task", "strips", "--data", str(folders / "mixed"), str(folders / "spheres")]
+    argv += ["--val", str(folders / "val"), "--out", str(folders / out), "--epochs", "2", "--batch-size", "25"]
+    argv += ["--threads", "1", "--quiet", "--size", "tiny", "--val-limit", "50", "--seed", "3"]
+    assert main([*argv, *extra]) == 0
+    return json.loads((folders / out / "metrics.json").read_text())
+
+
+def _config(device: str) -> TrainConfig:
+    return TrainConfig(task="strips", data="d", out="o", val="v", device=device)
+
+
+@pytest.mark.parametrize("device", ["tpu", "cuda:x", "cuda:", "gpu:0", ""])
+def test_an_unknown_device_is_named(device: str) -> None:
+    with pytest.raises(ConfigError, match="--device"):
+        _config(device).validate()
+
+
+def test_cuda_without_a_gpu_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ConfigError, match="no CUDA device"):
+        _config("cuda").validate()
+
+
+def test_device_cpu_is_the_default_run(folders: Path) -> None:
+    """``--device cpu`` is the CPU path as it was: the same weights bit for bit, the device recorded."""
+    plain = _train(folders, "plain")
+    named = _train(folders, "named", "--device", "cpu")
+    assert named["weights_sha256"] == plain["weights_sha256"]
+    assert plain["config"]["device"] == named["config"]["device"] == "cpu"
+
+
+def test_a_run_resumes_on_another_device_name(folders: Path) -> None:
+    """The device changes speed, not the recipe: a checkpoint resumes under another --device (here cpu
+    again, spelled as the recorded one was not) without the 'other settings' refusal."""
+    first = _train(folders, "resume", "--epochs", "1")
+    ckpt = load_torch(folders / "resume" / "checkpoint.pt")
+    ckpt["config"]["device"] = "cuda"  # as if the first epoch had run on a GPU
+    torch.save(ckpt, folders / "resume" / "checkpoint.pt")
+    (folders / "resume" / "model.pt").unlink()
+    argv = ["train", "--task", "strips", "--data", str(folders / "mixed"), str(folders / "spheres")]
+    argv += ["--val", str(folders / "val"), "--out", str(folders / "resume"), "--epochs", "1", "--batch-size", "25"]
+    argv += ["--threads", "1", "--quiet", "--size", "tiny", "--val-limit", "50", "--seed", "3", "--resume"]
+    assert main(argv) == 0
+    again = json.loads((folders / "resume" / "metrics.json").read_text())
+    assert again["weights_sha256"] == first["weights_sha256"]
+
+
+@pytest.mark.skipif(not CUDA, reason="needs a CUDA GPU (run on a lent GPU machine)")
+def test_cuda_training_matches_the_cpu_recipe(folders: Path) -> None:
+    """On a GPU, with a teacher: the run's files hold CPU weights, and training follows the CPU's
+    run closely (same batches, same augmentation; only the arithmetic differs)."""
+    _train(folders, "teacher_cpu", "--epochs", "1")
+    extra = ["--teacher", str(folders / "teacher_cpu"), "--teacher-data", str(folders / "spheres")]
+    cpu = _train(folders, "cpu", *extra)
+    gpu = _train(folders, "gpu", *extra, "--device", "cuda")
+    assert gpu["config"]["device"] == "cuda"
+    saved = load_torch(folders / "gpu" / "model.pt")
+    assert all(t.device.type == "cpu" for t in saved["state_dict"].values())
+    reference = load_torch(folders / "cpu" / "model.pt")["state_dict"]
+    for name, weight in saved["state_dict"].items():
+        np.testing.assert_allclose(weight.numpy(), reference[name].numpy(), rtol=0, atol=2e-3, err_msg=name)
+    for a, b in zip(cpu["history"], gpu["history"], strict=True):
+        assert a["train_loss"] == pytest.approx(b["train_loss"], rel=1e-3)
