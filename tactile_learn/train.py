@@ -51,6 +51,7 @@ from tactile_learn.training_sets import TrainingSet
 __all__ = ["TrainConfig", "train"]
 
 CHECKPOINT = "checkpoint.pt"
+EPOCH_WEIGHTS = "epoch-{epoch:03d}.pt"  # train --keep-epochs
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,9 @@ class TrainConfig:
     # augmentation and validation stay the same code on the CPU; only the forward and backward
     # passes move. Not bit-identical across devices (other kernels): the recipe is the same.
     device: str = "cpu"
+    # also write every epoch's weights as RUN/epoch-NNN.pt (a weights file like model.pt): the
+    # material of an average over the last epochs (scripts/strips_soup.py)
+    keep_epochs: bool = False
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -506,6 +510,8 @@ def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progr
         state["history"][-1]["train_loss"] = mean_over_ranks(float(np.mean(losses)), run.world)
     if not run.lead:
         return
+    if run.config.keep_epochs:
+        save_torch(run.out / EPOCH_WEIGHTS.format(epoch=epoch), _weights_file(run, _cpu_state(net), {"epoch": epoch}))
     save_torch(
         run.checkpoint_path,
         {
@@ -562,21 +568,23 @@ def _finish(run: _Run) -> dict[str, Any]:
         "history": state["history"],
         "config": asdict(config),
     }
-    save_torch(
-        run.out / MODEL,
-        {
-            "task": config.task,
-            "size": run.size,
-            "scene": scene.to_dict(),
-            "stats": run.stats,
-            "state_dict": state["best_state"],
-            "result": result,
-            "version": __version__,
-        },
-    )
+    save_torch(run.out / MODEL, _weights_file(run, state["best_state"], result))
     atomic_write_json(run.out / "metrics.json", result)
     _loss_plot(state["history"], run.out / "loss.png", run.task.primary_metric[0])
     return result
+
+
+def _weights_file(run: _Run, state_dict: dict[str, torch.Tensor], result: dict[str, Any]) -> dict[str, Any]:
+    """What ``model.pt`` (and an epoch's ``epoch-NNN.pt``) holds: everything export and ``--init`` need."""
+    return {
+        "task": run.config.task,
+        "size": run.size,
+        "scene": run.scene.to_dict(),
+        "stats": run.stats,
+        "state_dict": state_dict,
+        "result": result,
+        "version": __version__,
+    }
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:

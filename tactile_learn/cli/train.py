@@ -105,6 +105,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="where the network trains: cpu (default, bit-reproducible) or cuda[:N] (a GPU: the same recipe, faster;"
         " weights equal up to the GPU's arithmetic)",
     )
+    parser.add_argument(
+        "--keep-epochs",
+        action="store_true",
+        help="also write every epoch's weights as RUN/epoch-NNN.pt (for an average of the last epochs)",
+    )
     parser.add_argument("--quiet", action="store_true")
 
 
@@ -137,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
         teacher_weight=args.teacher_weight,
         r_weight=args.r_weight,
         device=args.device,
+        keep_epochs=args.keep_epochs,
     )
     result = train(config, resume=args.resume, progress=False if args.quiet else None)
     if not args.quiet and "val_metrics" in result:  # under torchrun: rank 0 reports

@@ -3,19 +3,23 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch", reason="torch (training extra) is not installed")
+pytest.importorskip("torch", reason="torch (training extra) is not installed")
+
+import torch
 
 from synth.dataset import generate
-from synth.errors import ConfigError
+from synth.errors import ConfigError, ModelError
 from synth.scene import load_scene
-from tactile_learn.checkpoints import load_torch
+from tactile_learn.checkpoints import load_torch, load_weights
 from tactile_learn.cli import main
 from tactile_learn.train import TrainConfig
+from tests.paths import REPO_ROOT
 
 CUDA = torch.cuda.is_available()
 
@@ -93,3 +97,32 @@ def test_cuda_training_matches_the_cpu_recipe(folders: Path) -> None:
         np.testing.assert_allclose(weight.numpy(), reference[name].numpy(), rtol=0, atol=2e-3, err_msg=name)
     for a, b in zip(cpu["history"], gpu["history"], strict=True):
         assert a["train_loss"] == pytest.approx(b["train_loss"], rel=1e-3)
+
+
+def test_kept_epochs_and_their_average(folders: Path) -> None:
+    """--keep-epochs writes every epoch's weights; model.pt is the best of them; scripts/strips_soup.py
+    averages the last ones into a run folder that --init reads."""
+    sys.path.insert(0, str(REPO_ROOT / "scripts"))
+    import strips_soup
+
+    result = _train(folders, "kept", "--keep-epochs")
+    run = folders / "kept"
+    files = sorted(run.glob("epoch-*.pt"))
+    assert [f.name for f in files] == ["epoch-001.pt", "epoch-002.pt"]
+    epochs = [load_weights(f)["state_dict"] for f in files]
+    last = load_torch(run / "checkpoint.pt")["net"]
+    best = load_weights(run)["state_dict"]
+    for name in last:
+        assert torch.equal(epochs[1][name], last[name])
+        assert torch.equal(epochs[result["best_epoch"] - 1][name], best[name])
+    assert any(not torch.equal(epochs[0][k], epochs[1][k]) for k in last)
+    assert strips_soup.main([str(run), "--last", "2", "--out", str(folders / "soup")]) == 0
+    soup = load_weights(folders / "soup")
+    for name, weight in soup["state_dict"].items():
+        if weight.is_floating_point():
+            torch.testing.assert_close(weight, (epochs[0][name] + epochs[1][name]) / 2)
+    _train(folders, "from_soup", "--epochs", "1", "--init", str(folders / "soup"))
+    with pytest.raises(ConfigError, match="--last"):
+        strips_soup.main([str(run), "--last", "3", "--out", str(folders / "soup3")])
+    with pytest.raises(ModelError, match="--keep-epochs"):
+        strips_soup.main([str(folders / "plain"), "--last", "1", "--out", str(folders / "soup4")])
