@@ -39,7 +39,10 @@ def average(files: list[Path]) -> dict:
         k: sum(s["state_dict"][k] for s in saved) / len(saved) if v.is_floating_point() else v
         for k, v in saved[-1]["state_dict"].items()
     }
-    result = {**dict(saved[-1].get("result") or {}), "averaged": {"epochs": [str(f) for f in files]}}
+    # the run's own record (model.pt: data, schedule, device), which export copies into the card
+    finished = files[-1].parent / MODEL
+    record = load_weights(finished)["result"] if finished.is_file() else dict(saved[-1].get("result") or {})
+    result = {**record, "averaged": {"epochs": [str(f) for f in files]}}
     return {**saved[-1], "state_dict": state, "result": result}
 
 

@@ -190,6 +190,8 @@ def _card(
             "best_epoch": result["best_epoch"],
             "train_seconds": result["train_seconds"],
             "threads": result["threads"],
+            # a GPU-trained model is reproducible from its recipe, not bit for bit across devices
+            "device": result["config"].get("device", "cpu"),
             "config": {
                 k: _portable_paths(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
             },

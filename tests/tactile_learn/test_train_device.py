@@ -118,6 +118,8 @@ def test_kept_epochs_and_their_average(folders: Path) -> None:
     assert any(not torch.equal(epochs[0][k], epochs[1][k]) for k in last)
     assert strips_soup.main([str(run), "--last", "2", "--out", str(folders / "soup")]) == 0
     soup = load_weights(folders / "soup")
+    assert soup["result"]["train_data"] == result["train_data"]  # the run's record, for export's card
+    assert soup["result"]["averaged"]["epochs"] == [str(f) for f in files]
     for name, weight in soup["state_dict"].items():
         if weight.is_floating_point():
             torch.testing.assert_close(weight, (epochs[0][name] + epochs[1][name]) / 2)
