@@ -101,8 +101,8 @@ strips16() {  # the general model (the default): the whole shape library, 1-4 co
     --teacher-data data/strips16-train --seed 8 --quiet
   $PY scripts/average_weights.py runs/strips16_consistent_init.pt runs/strips16_consistent3 --out runs/strips16_soup4
   # a ninth, on a GPU (train --device cuda; STRIPS_DEVICE=cpu runs the same recipe on the CPU, about
-  # 67,000 batches of 512: some ten hours at one thread): the eighth's network trained ~35 times longer
-  # than any CPU cycle, batches of 512, four runs each from the last (A: 8 x 423 then the mean of its
+  # 67,000 batches of 512: some ten hours at one thread): the eighth's network on ~30 times the frames
+  # of any CPU cycle, four runs each from the last (A: 8 x 423 then the mean of its
   # last 3 epochs; B: 8 x 2418 with twice the smooth-field folder; C: 14 x 2299 three times; D: 6 epochs
   # at a lower rate without the single-contact folder, its last epoch): two spheres 0.953 -> 0.962,
   # ood mean 0.823 -> 0.830, margin +0.051 -> +0.058 (block 30 deg now above the rule on the suite and
