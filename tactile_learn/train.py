@@ -122,8 +122,8 @@ class TrainConfig:
     def _validate_device(self) -> None:
         if self.device == "cpu":
             return
-        kind, _, index = self.device.partition(":")
-        if kind != "cuda" or (index and not index.isdigit()):
+        kind, colon, index = self.device.partition(":")
+        if kind != "cuda" or (colon and not index.isdigit()):  # "cuda" or "cuda:N", not "cuda:"
             raise ConfigError(f"--device: {self.device!r} is neither cpu nor cuda[:N]")
         if not torch.cuda.is_available():
             raise ConfigError(f"--device {self.device}: torch sees no CUDA device on this machine (use --device cpu)")

@@ -51,6 +51,13 @@ def test_an_unknown_device_is_named(device: str) -> None:
         _config(device).validate()
 
 
+@pytest.mark.parametrize("device", ["cuda:", "cuda:1x"])
+def test_a_malformed_index_is_named_even_with_a_gpu(monkeypatch: pytest.MonkeyPatch, device: str) -> None:
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)  # as on a GPU machine
+    with pytest.raises(ConfigError, match="neither cpu nor cuda"):
+        _config(device).validate()
+
+
 def test_cuda_without_a_gpu_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     with pytest.raises(ConfigError, match="no CUDA device"):
