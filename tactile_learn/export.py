@@ -190,9 +190,13 @@ def _card(
             "best_epoch": result["best_epoch"],
             "train_seconds": result["train_seconds"],
             "threads": result["threads"],
+            # a GPU-trained model is reproducible from its recipe, not bit for bit across devices
+            "device": result["config"].get("device", "cpu"),
             "config": {
                 k: _portable_paths(v) if k in ("data", "val", "out") and v else v for k, v in result["config"].items()
             },
+            # weights averaged with another run's (scripts/average_weights.py): the run above is one of two
+            **({"averaged": _card_averaged(result["averaged"])} if "averaged" in result else {}),
         },
         "parity": exported["parity"],
         "metrics": {"validation": result["val_metrics"]},
@@ -215,6 +219,11 @@ def _add_heldout_metrics(card: dict[str, Any], out: Path, task: Task, test: str 
     """Metrics of the exported model on the held-out dataset ``test``, with what regenerates it."""
     card["metrics"]["heldout"] = {**dataset_entry(task.name, out, test), "command": command or command_line()}
     atomic_write_json(card_path(out), card)
+
+
+def _card_averaged(averaged: dict[str, Any]) -> dict[str, Any]:
+    """A soup's provenance for the card: both runs (portable paths), the second's weight."""
+    return {k: _portable_paths(v) if k in ("first", "second", "epochs") else v for k, v in averaged.items()}
 
 
 def _portable_paths(paths: str | list[str] | tuple[str, ...]) -> str | list[str]:

@@ -1,4 +1,4 @@
-"""The one training loop for every task (CPU, reproducible, resumable).
+"""The one training loop for every task (CPU or one CUDA GPU, reproducible, resumable).
 
 - Data streams from the dataset's memory-mapped shards, one shard in memory at a time, or is
   simulated as it is needed (``scene`` + ``stream``: :class:`tactile_learn.stream.TouchStream`).
@@ -22,6 +22,7 @@
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import inspect
 import os
@@ -50,6 +51,7 @@ from tactile_learn.training_sets import TrainingSet
 __all__ = ["TrainConfig", "train"]
 
 CHECKPOINT = "checkpoint.pt"
+EPOCH_WEIGHTS = "epoch-{epoch:03d}.pt"  # train --keep-epochs
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,13 @@ class TrainConfig:
     teacher_weight: float = 1.0
     # the weight of the loss's per-frame (1 - r) term, for tasks whose loss has one (strips)
     r_weight: float = 1.0
+    # where the network (and a teacher) computes: "cpu", or "cuda"/"cuda:N" for a GPU. Batches,
+    # augmentation and validation stay the same code on the CPU; only the forward and backward
+    # passes move. Not bit-identical across devices (other kernels): the recipe is the same.
+    device: str = "cpu"
+    # also write every epoch's weights as RUN/epoch-NNN.pt (a weights file like model.pt): the
+    # material of an average over the last epochs (scripts/strips_soup.py)
+    keep_epochs: bool = False
 
     def validate(self) -> None:
         task = get_task(self.task)
@@ -108,6 +117,18 @@ class TrainConfig:
             raise ConfigError(f"--r-weight: {self.r_weight} is out of range [0, 100]")
         if self.r_weight != 1.0 and "r_weight" not in inspect.signature(task.loss).parameters:
             raise ConfigError(f"--r-weight: the {self.task} task's loss has no per-frame r term")
+        self._validate_device()
+
+    def _validate_device(self) -> None:
+        if self.device == "cpu":
+            return
+        kind, colon, index = self.device.partition(":")
+        if kind != "cuda" or (colon and not index.isdigit()):  # "cuda" or "cuda:N", not "cuda:"
+            raise ConfigError(f"--device: {self.device!r} is neither cpu nor cuda[:N]")
+        if not torch.cuda.is_available():
+            raise ConfigError(f"--device {self.device}: torch sees no CUDA device on this machine (use --device cpu)")
+        if index and int(index) >= torch.cuda.device_count():
+            raise ConfigError(f"--device {self.device}: this machine has {torch.cuda.device_count()} CUDA device(s)")
 
     def loss_options(self) -> dict[str, float]:
         """Keyword arguments of the task's loss (none at the defaults: every task's loss takes those)."""
@@ -339,6 +360,7 @@ def _build_model(run: _Run) -> None:
         run.net = start.net
     else:
         run.net = task.build_net(run.size, scene, run.stats)
+    run.net.to(config.device)  # before the optimiser, whose state follows the parameters' device
     run.optimizer = torch.optim.AdamW(run.net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     batches_per_epoch = sum(int(s["n"]) // config.batch_size for s in run.train_set.shards)
     if config.max_batches:
@@ -350,12 +372,15 @@ def _build_model(run: _Run) -> None:
         raise ConfigError(f"--batch-size: {config.batch_size} does not split into {run.world} equal shards (processes)")
     run.batches_per_epoch = batches_per_epoch
     if config.teacher:
-        run.teacher = Teacher(config.teacher, scene, config.taught_parts(), config.teacher_weight)
+        run.teacher = Teacher(config.teacher, scene, config.taught_parts(), config.teacher_weight, config.device)
     run.scheduler = torch.optim.lr_scheduler.OneCycleLR(
         run.optimizer, max_lr=config.lr, total_steps=run.epochs * batches_per_epoch, pct_start=0.15
     )
     if run.world > 1:
         from torch.nn.parallel import DistributedDataParallel
+
+        if config.device != "cpu":
+            raise ConfigError("--device: data-parallel training (torchrun) runs on the CPU only")
 
         # DDP broadcasts rank 0's initial weights, then averages the gradients of every step
         run.step_module = DistributedDataParallel(TrainStep(run.net, config.task))
@@ -369,13 +394,16 @@ def _resume_state(run: _Run) -> dict[str, Any]:
     """Network, optimiser, schedule and torch RNG as the checkpoint left them; its loop state."""
     config = run.config
     ckpt = load_torch(run.checkpoint_path)
-    # the thread count may change on resume (a busier machine): it changes speed, not the recipe
-    started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k != "threads"}
+    # the thread count and the device may change on resume (a busier machine, a lent GPU): they
+    # change speed, not the recipe
+    same_recipe = ("threads", "device")
+    started_with = {k: v for k, v in dict(ckpt.get("config") or {}).items() if k not in same_recipe}
     # a run started before a setting existed ran with that setting's default
     defaults = asdict(TrainConfig(task=config.task, data=config.data, out=config.out))
     started_with = {**{k: v for k, v in defaults.items() if k not in started_with}, **started_with}
-    started_with.pop("threads", None)
-    if started_with != {k: v for k, v in asdict(config).items() if k != "threads"}:
+    for name in same_recipe:
+        started_with.pop(name, None)
+    if started_with != {k: v for k, v in asdict(config).items() if k not in same_recipe}:
         raise ConfigError(
             f"{run.checkpoint_path}: the run was started with other settings; resume it with the same command"
         )
@@ -415,8 +443,9 @@ def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
                 targets = {k: np.ascontiguousarray(v) for k, v in targets.items()}
             else:
                 x, targets = _batch(run, arrays, rng)
-                output = task.train_forward(net, torch.from_numpy(x))
-            loss = task.loss(output, {k: torch.from_numpy(v) for k, v in targets.items()}, **config.loss_options())
+                output = task.train_forward(net, _on(torch.from_numpy(x), config.device))
+            on_device = {k: _on(torch.from_numpy(v), config.device) for k, v in targets.items()}
+            loss = task.loss(output, on_device, **config.loss_options())
             if not torch.isfinite(loss):
                 raise DataError(f"training diverged at epoch {epoch} (loss {loss.item()}); lower --lr")
             run.optimizer.zero_grad(set_to_none=True)
@@ -429,6 +458,22 @@ def _train_epoch(run: _Run, epoch: int, show: bool | None) -> list[float]:
             if i % 20 == 0:
                 bar.set_postfix_str(f"loss {np.mean(losses[-20:]):.4g}")
     return losses
+
+
+def _on(tensor: torch.Tensor, device: str) -> torch.Tensor:
+    """``tensor`` on ``device`` (on the CPU the same tensor: the CPU path stays as it was)."""
+    return tensor if device == "cpu" else tensor.to(device, non_blocking=True)
+
+
+def _cpu_net(run: _Run) -> torch.nn.Module:
+    """The network for validation, which runs on the CPU: itself, or a CPU copy of a GPU network."""
+    assert run.net is not None
+    return run.net if run.config.device == "cpu" else copy.deepcopy(run.net).cpu()
+
+
+def _cpu_state(net: torch.nn.Module) -> dict[str, torch.Tensor]:
+    """A copy of the weights on the CPU (what the run's files hold, whatever the device)."""
+    return {k: v.detach().to("cpu", copy=True) for k, v in net.state_dict().items()}
 
 
 def _batch(
@@ -448,13 +493,14 @@ def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progr
     state, net = run.state, run.net
     assert net is not None
     metric, higher_better = run.task.primary_metric
-    val_metrics = run.task.evaluate(TorchEstimator(net, run.config.task, run.scene), run.val) if run.lead else {}
+    val_net = _cpu_net(run)
+    val_metrics = run.task.evaluate(TorchEstimator(val_net, run.config.task, run.scene), run.val) if run.lead else {}
     val_metrics = broadcast(val_metrics, run.world)
     value = float(val_metrics[metric])
     improved = state["best"] is None or (value > state["best"] if higher_better else value < state["best"])
     if improved:
         state["best"], state["best_epoch"] = value, epoch
-        state["best_state"] = {k: v.detach().clone() for k, v in net.state_dict().items()}
+        state["best_state"] = _cpu_state(net)
     state["epoch"] = epoch
     state["seconds"] = seconds
     state["history"].append(
@@ -464,12 +510,14 @@ def _end_epoch(run: _Run, epoch: int, losses: list[float], seconds: float, progr
         state["history"][-1]["train_loss"] = mean_over_ranks(float(np.mean(losses)), run.world)
     if not run.lead:
         return
+    if run.config.keep_epochs:
+        save_torch(run.out / EPOCH_WEIGHTS.format(epoch=epoch), _weights_file(run, _cpu_state(net), {"epoch": epoch}))
     save_torch(
         run.checkpoint_path,
         {
             "config": asdict(run.config),
-            "net": net.state_dict(),
-            "optimizer": run.optimizer.state_dict(),
+            "net": net.state_dict() if run.config.device == "cpu" else _cpu_state(net),
+            "optimizer": run.optimizer.state_dict(),  # load_torch maps it to the CPU; resuming moves it
             "scheduler": run.scheduler.state_dict(),
             "torch_rng": torch.get_rng_state(),
             "state": state,
@@ -486,6 +534,7 @@ def _finish(run: _Run) -> dict[str, Any]:
     """The best epoch's weights, evaluated once more; rank 0 writes ``model.pt``, the metrics and the plot."""
     config, state, net, scene = run.config, run.state, run.net, run.scene
     assert net is not None
+    net.cpu()  # the run's files and its final evaluation: CPU weights, whatever the device
     net.load_state_dict(state["best_state"])
     digest = weights_digest(state["best_state"])
     if not run.lead:
@@ -519,21 +568,23 @@ def _finish(run: _Run) -> dict[str, Any]:
         "history": state["history"],
         "config": asdict(config),
     }
-    save_torch(
-        run.out / MODEL,
-        {
-            "task": config.task,
-            "size": run.size,
-            "scene": scene.to_dict(),
-            "stats": run.stats,
-            "state_dict": state["best_state"],
-            "result": result,
-            "version": __version__,
-        },
-    )
+    save_torch(run.out / MODEL, _weights_file(run, state["best_state"], result))
     atomic_write_json(run.out / "metrics.json", result)
     _loss_plot(state["history"], run.out / "loss.png", run.task.primary_metric[0])
     return result
+
+
+def _weights_file(run: _Run, state_dict: dict[str, torch.Tensor], result: dict[str, Any]) -> dict[str, Any]:
+    """What ``model.pt`` (and an epoch's ``epoch-NNN.pt``) holds: everything export and ``--init`` need."""
+    return {
+        "task": run.config.task,
+        "size": run.size,
+        "scene": run.scene.to_dict(),
+        "stats": run.stats,
+        "state_dict": state_dict,
+        "result": result,
+        "version": __version__,
+    }
 
 
 def _scalars(metrics: dict[str, Any]) -> dict[str, Any]:

@@ -35,7 +35,7 @@ class Teacher:
     folders ``taught`` (indices into the training set's folders): their target becomes
     ``weight * teacher + (1 - weight) * truth``."""
 
-    def __init__(self, source: str, scene: Scene, taught: Sequence[int], weight: float) -> None:
+    def __init__(self, source: str, scene: Scene, taught: Sequence[int], weight: float, device: str = "cpu") -> None:
         if not (0.0 < weight <= 1.0):
             raise ConfigError(f"--teacher-weight: {weight} is out of range (0, 1]")
         if not taught:
@@ -43,6 +43,8 @@ class Teacher:
         self.estimator = TorchEstimator.from_checkpoint(source, scene)
         self.net = self.estimator.net
         self.net.eval()
+        self.device = device  # the student's: the teacher reads the same batch where it lies
+        self.net.to(device)
         self.taught = np.asarray(sorted(set(taught)), dtype=np.int64)
         self.weight = float(weight)
         self.source = source
@@ -50,10 +52,11 @@ class Teacher:
     @torch.inference_mode()
     def maps(self, inputs: np.ndarray) -> np.ndarray:
         """The teacher's output for a batch of (already augmented) inputs, float32."""
-        out = self.net(torch.from_numpy(np.ascontiguousarray(inputs, dtype=np.float32)))
+        x = torch.from_numpy(np.ascontiguousarray(inputs, dtype=np.float32))
+        out = self.net(x if self.device == "cpu" else x.to(self.device))
         if isinstance(out, tuple):  # a network with intermediate maps: the final one
             out = out[0]
-        return out.numpy()
+        return out.cpu().numpy()
 
     def targets(self, inputs: np.ndarray, target: np.ndarray, part: np.ndarray) -> np.ndarray:
         """``target`` with the taught frames' rows replaced by the blend (a new array; the others as given)."""

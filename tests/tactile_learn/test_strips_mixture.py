@@ -91,5 +91,11 @@ def test_averaged_weights_of_two_runs(folders: Path, mixture_run: Path) -> None:
     key = next(k for k in soup if soup[k].is_floating_point() and not torch.equal(a[k], b[k]))
     assert torch.allclose(soup[key], 0.75 * a[key] + 0.25 * b[key])
     assert not torch.allclose(soup[key], a[key])
+    # the exported card says the weights are a soup, of which runs, at what weight
+    onnx = folders / "soup.onnx"
+    assert main(["export", str(out), "--out", str(onnx)]) == 0
+    averaged = json.loads(onnx.with_suffix(".json").read_text())["training"]["averaged"]
+    assert averaged["weight"] == 0.25 and averaged["last_epoch"] is True
+    assert averaged["first"].endswith("run") and averaged["second"].endswith("tuned")
     with pytest.raises(ModelError, match="differ"):
         average_weights.main([str(first), "models/strips16.pt", "--out", str(folders / "bad")])
