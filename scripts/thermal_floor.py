@@ -15,11 +15,10 @@ Three figures per channel and condition (M metal, W wood, CW cooled wood), every
   window after the onset, raw and after the best per-touch affine map (time shift and scale,
   amplitude gain and offset). What is left after the map is touch-to-touch variation that a
   deterministic model with per-session parameters can follow only through a per-touch cause.
-- ``noise``: the noise's power at the residual's own time scales, from the records' quiet parts: the
-  pre-contact segments (detrended, all touches) and the passive channel on wood and metal at room
-  temperature over the whole record (nothing should happen there but the object's ~1 K offset).
-  Reported: the white sigma (the report's unit), the RMS of the noise band-limited to 0.1-2 Hz, and
-  the RMS a smooth 4 s fit leaves of pure noise of that spectrum (what a perfect model would leave).
+- ``noise``: the noise scale by scale, from the records' quiet parts (the pre-contact segments of
+  every touch; the passive channel on wood and metal at room temperature 1-6 s after the onset, where
+  nothing flows but the object's small offset): what a cubic spline with knots every 0.125..4 s
+  leaves (see :func:`quiet_noise`), against the white sigma the report divides by.
 
 The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else ``../shared/data/thermal-robot``.
 """
@@ -193,19 +192,6 @@ def _align_mean(
 # ---------------------------------------------------------------- noise at slow time scales
 
 
-def band_rms(x: np.ndarray, fs: float, f_lo: float, f_hi: float) -> float:
-    """RMS of a detrended segment's content between ``f_lo`` and ``f_hi`` (Hz): a Hann-windowed
-    periodogram summed over the band (Parseval; the window's power loss corrected)."""
-    n = len(x)
-    tt = np.arange(n)
-    y = x - np.polyval(np.polyfit(tt, x, 1), tt)
-    w = np.hanning(n)
-    spec = np.abs(np.fft.rfft(y * w)) ** 2 / np.sum(w**2)  # mean-square per bin (two-sided folded below)
-    f = np.fft.rfftfreq(n, 1.0 / fs)
-    band = (f >= f_lo) & (f <= f_hi)
-    return float(np.sqrt(2.0 * spec[band].sum() / n))
-
-
 def smooth_fit_rms(x: np.ndarray, t: np.ndarray, knots_s: float) -> float:
     """RMS of what a cubic spline with knots every ``knots_s`` leaves of a segment: the part of the
     noise no smooth curve of that flexibility follows."""
@@ -218,43 +204,38 @@ def smooth_fit_rms(x: np.ndarray, t: np.ndarray, knots_s: float) -> float:
     return rms(x - LSQUnivariateSpline(t, x, knots, k=3)(t))
 
 
+#: knot spacings (s) of the smoothing splines whose remainders measure the noise scale by scale
+KNOTS_S = (0.125, 0.25, 0.5, 1.0, 2.0, 4.0)
+
+
 def quiet_noise(touches: list[Touch], onsets: list[float], conditions: list[str]) -> dict[str, Any]:
-    """The noise at slow time scales, two sources: the pre-contact segments (record start + 0.05 s to
-    0.5 s before the onset, both channels) and the passive channel on wood and metal over 1..6 s
-    after the onset (no heat flows there but the object's small offset, a smooth decay)."""
-    out: dict[str, Any] = {}
-    fs = touches[0].sampling_hz
-    for channel in ("heated", "passive"):
-        segs = []
-        for touch, onset in zip(touches, onsets, strict=True):
-            x = reading(touch, channel)
-            sel = (touch.time_s > touch.time_s[0] + 0.05) & (touch.time_s < onset - tcal.QUIET_BEFORE_S)
-            if sel.sum() >= 60:
-                segs.append((touch.time_s[sel], x[sel]))
-        lengths = [len(s[0]) / fs for s in segs]
-        # about a quadratic trend (the heater's settling), the band 1-20 Hz the short segments resolve
-        about_quadratic = [rms(x - np.polyval(np.polyfit(tt - tt.mean(), x, 2), tt - tt.mean())) for tt, x in segs]
-        out[f"{channel}_precontact"] = {
-            "segments": len(segs),
-            "length_s_median": float(np.median(lengths)),
-            "rms_about_quadratic_k_median": float(np.median(about_quadratic)),
-            "band_1_5_hz_k_median": float(np.median([band_rms(x, fs, 1.0, 5.0) for _, x in segs])),
-            "band_5_100_hz_k_median": float(np.median([band_rms(x, fs, 5.0, fs / 2) for _, x in segs])),
-        }
-    long = []
+    """The noise scale by scale: the median RMS that a cubic spline with knots every ``k`` s
+    (KNOTS_S) leaves of the quiet parts of the records. A spline with knots every ``k`` follows every
+    change slower than ~``k``, so the remainder holds the noise (and any physics) faster than that;
+    its growth with ``k`` is the noise's power at slow scales (a wavelet-like ladder, which unlike a
+    periodogram of these short, curved segments does not leak their trend into the low bins).
+    Sources: the pre-contact segments (record start + 0.05 s to 0.5 s before the onset, both
+    channels, ~0.7 s: ``k`` above that is the smoothest curve the segment holds); the passive channel
+    on wood and metal 1-6 s after the onset (no heat flows there but the object's small offset);
+    the heated channel on wood 1-6 s (a smooth 0.4 K curve: an upper bound at long ``k``)."""
+    sources: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     for touch, onset, cond in zip(touches, onsets, conditions, strict=True):
+        t = touch.time_s
+        pre = (t > t[0] + 0.05) & (t < onset - tcal.QUIET_BEFORE_S)
+        during = (t > onset + 1.0) & (t < onset + 6.0)
+        for channel in ("heated", "passive"):
+            if pre.sum() >= 60:
+                sources.setdefault(f"{channel}_precontact", []).append((t[pre], reading(touch, channel)[pre]))
         if cond in ("W", "M"):
-            sel = (touch.time_s > onset + 1.0) & (touch.time_s < onset + 6.0)
-            long.append((cond, touch.time_s[sel], reading(touch, "passive")[sel]))
-    for cond in ("W", "M"):
-        segs2 = [(tt, x) for c, tt, x in long if c == cond]
-        out[f"passive_on_{cond}_1_to_6_s"] = {
-            "segments": len(segs2),
-            "band_0p1_2_hz_k_median": float(np.median([band_rms(x, fs, 0.1, 2.0) for _, x in segs2])),
-            "band_2_100_hz_k_median": float(np.median([band_rms(x, fs, 2.0, fs / 2) for _, x in segs2])),
-            "rms_about_spline_4s_k_median": float(np.median([smooth_fit_rms(x, tt, 4.0) for tt, x in segs2])),
-            "rms_about_spline_1s_k_median": float(np.median([smooth_fit_rms(x, tt, 1.0) for tt, x in segs2])),
-            "rms_about_spline_0p25s_k_median": float(np.median([smooth_fit_rms(x, tt, 0.25) for tt, x in segs2])),
+            sources.setdefault(f"passive_on_{cond}_1_to_6_s", []).append((t[during], reading(touch, "passive")[during]))
+        if cond == "W":
+            sources.setdefault("heated_on_W_1_to_6_s", []).append((t[during], reading(touch, "heated")[during]))
+    out: dict[str, Any] = {"knots_s": list(KNOTS_S)}
+    for name, segs in sources.items():
+        out[name] = {
+            "segments": len(segs),
+            "length_s_median": float(np.median([tt[-1] - tt[0] for tt, _ in segs])),
+            "rms_left_k_median": [float(np.median([smooth_fit_rms(x, tt, k) for tt, x in segs])) for k in KNOTS_S],
         }
     return out
 
