@@ -86,6 +86,8 @@ class OneFrameCheck:
         self.d_max = float(dg[-1])
         if dg[0] != 0.0 or ag[0] != 0.0:  # conductance_at leaves out the clamps below the grids' start
             raise ValueError("the film's load table must start at distance 0 and radius 0")
+        if float(transfer.table.min()) < 0.0:  # conductance_at leaves out the clamp of the load at 0
+            raise ValueError("the film's load table must not be negative")
         self.table = transfer.table.tolist()
         #: the table by column (radius): a force fixes two columns, read at two distances per sensor.
         #: Packed doubles rather than lists of floats: a sensor's four values lie in one or two
@@ -155,23 +157,25 @@ class OneFrameCheck:
             dx, dy = x - px, y - py
             d = sqrt(dx * dx + dy * dy)
             if d > d_max:  # beyond the table: the far-field point-load formula (as per_newton)
-                per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))
-            else:
+                load = float(self.transfer.per_newton(np.array(d), np.array(radius))) * force
+                if load < 0.0:
+                    load = 0.0
+            else:  # (the table and the weights are >= 0, the force > 0: the load is, no clamp)
                 di = d / dd  # (d - 0) / dd
                 if di > d_top:
                     di = d_top
                 i0 = int(di)
                 fi = di % 1.0  # di - i0 (di >= 0: both exact)
                 gi = 1.0 - fi
-                per_newton = near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj
-            load = per_newton * force
-            if load < 0.0:
-                load = 0.0
+                load = (near[i0] * gi * gj + near[i0 + 1] * fi * gj + far[i0] * gi * fj + far[i0 + 1] * fi * fj) * force
             z = (load - brk) / width
             if z > 37.0:  # the gate is exactly 1
                 out.append(leak + per_n * (sat * tanh(load / sat)))
             else:
-                gate = 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0  # expit; exp(709) is still finite
+                try:
+                    gate = 1.0 / (1.0 + exp(-z))  # expit
+                except OverflowError:  # exp(-z) beyond float64's range: numpy's inf gives 0
+                    gate = 0.0
                 out.append(leak + per_n * (sat * tanh(load * gate / sat)))
         return out
 
@@ -202,7 +206,9 @@ class OneFrameCheck:
             if d > d_max:
                 per_newton = float(self.transfer.per_newton(np.array(d), np.array(radius)))  # as conductance_at
                 slope_d, slope_a = self._far_field_slope(d), 0.0
-            else:
+                if per_newton < 0.0:  # (load clamped at 0 below)
+                    per_newton = 0.0
+            else:  # (>= 0, as conductance_at's: no clamp)
                 di = d / dd
                 d_free = di < d_top  # else clamped to the table's last row: no slope in distance
                 if not d_free:
@@ -215,10 +221,14 @@ class OneFrameCheck:
                 slope_d = ((t10 - t00) * gj + (t11 - t01) * fj) / dd if d_free else 0.0
                 slope_a = (t01 - t00) * gi + (t11 - t10) * fi
             load = per_newton * force
-            if load < 0.0:
-                load = 0.0
             z = (load - brk) / width
-            gate = 1.0 if z > 37.0 else 1.0 / (1.0 + exp(-z)) if z > -709.0 else 0.0
+            if z > 37.0:
+                gate = 1.0
+            else:
+                try:
+                    gate = 1.0 / (1.0 + exp(-z))
+                except OverflowError:  # (as conductance_at)
+                    gate = 0.0
             t = tanh(load * gate / sat)
             g = leak + per_n * (sat * t)
             model.append(g)
@@ -345,24 +355,35 @@ class OneFrameCheck:
     ) -> float:
         """:meth:`p_one_press` of a contact detected inside a triangle at ``x, y`` with ``force``
         (floats of float32 values; ``screen`` likewise), from the frame's :meth:`measured`
-        conductances. (:meth:`misfit` and :func:`_log_force` written out: the misfit's scale is
-        the frame's, worked out once.)"""
-        threshold, column, conductance_at, cost = self.threshold, self.column, self.conductance_at, self._cost
-        sqrt, log, floor = math.sqrt, math.log, _FORCE_FLOOR
+        conductances: the screen's point as it is (when given, as the batch path), else the
+        estimate as it is, then :meth:`flag_refined`."""
         scale = self._scale(measured)
-        if screen is not None:  # the screen's point first, as the batch path
-            sx, sy, sforce = screen
-            at_screen = conductance_at(sx, sy, column(log(floor if floor > sforce else sforce)))
-            if sqrt(cost(measured, at_screen) / 6) / scale <= threshold:
-                return 1.0
-        start = [x, y, log(floor if floor > force else force)]
-        sums = None
-        if screen is None:  # an estimate that mostly passes as it is (the fitted kernel's)
-            base = conductance_at(x, y, column(start[2]))
-        else:  # the half-space kernel's, which hardly ever does: the refinement's sums at once
-            base, sums = self.model_and_normal_equations(x, y, start[2], column(start[2]), measured)
-        if sqrt(cost(measured, base) / 6) / scale <= threshold:
+        if self.passes_at(measured, scale, *(screen if screen is not None else (x, y, force))):
             return 1.0
+        return self.flag_refined(measured, scale, x, y, force, screen is not None)
+
+    def passes_at(self, measured: list[float], scale: float, x: float, y: float, force: float) -> bool:
+        """Whether the press at ``x, y`` with ``force`` (floats of float32 values) fits the frame's
+        :meth:`measured` conductances as it is (``scale``: their :meth:`_scale`): :meth:`misfit`
+        at most the threshold, with :func:`_log_force` written out."""
+        floor = _FORCE_FLOOR
+        model = self.conductance_at(x, y, self.column(math.log(floor if floor > force else force)))
+        return math.sqrt(self._cost(measured, model) / 6) / scale <= self.threshold
+
+    def flag_refined(
+        self, measured: list[float], scale: float, x: float, y: float, force: float, screened: bool
+    ) -> float:
+        """The flag of a press whose first point as it is did not fit (``screened``: that was the
+        screen's point, and the estimate at ``x, y, force`` is still to be tried as it is; else it
+        was the estimate): the refinements from the estimate, then from the sensors'
+        conductance-weighted centroid. ``scale``: the :meth:`measured` conductances' :meth:`_scale`."""
+        threshold = self.threshold
+        start = [x, y, _log_force(force)]
+        base = sums = None
+        if screened:  # the half-space kernel's estimate, which hardly ever fits as it is: its sums at once
+            base, sums = self.model_and_normal_equations(x, y, start[2], self.column(start[2]), measured)
+            if math.sqrt(self._cost(measured, base) / 6) / scale <= threshold:
+                return 1.0
         if self.refined_misfit(measured, start, threshold, base, sums) <= threshold:
             return 1.0
         weights = [max(m - self.leak, 0.0) + 1e-12 for m in measured]

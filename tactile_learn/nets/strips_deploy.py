@@ -32,7 +32,7 @@ from torch import nn
 from synth.errors import ModelError
 from synth.scene import Scene
 from tactile_learn.nets.strip_blocks import law_gain
-from tactile_learn.nets.strips_consistent import RATIO_CAP, RATIO_EPS
+from tactile_learn.nets.strips_consistent import ConsistencyStep
 from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
 __all__ = ["DeployedStripNet", "deploy"]
@@ -90,8 +90,6 @@ class DeployedStripNet(nn.Module):
     stress: torch.Tensor
     noise_weights: torch.Tensor
     numerator: torch.Tensor
-    sums_t: torch.Tensor
-    stress_t: torch.Tensor
 
     def __init__(self, net: GeneralStripNet, scene: Scene) -> None:
         super().__init__()
@@ -195,13 +193,17 @@ class DeployedStripNet(nn.Module):
         n = self.n_rows
         forward = StripForward(scene)
         residual = StripResidual(scene)
-        self.register_buffer("stress", forward.stress.clone())
         self.p0_forward, self.exponent_forward = forward.p0, forward.exponent
         strips = forward.sums.shape[1]
+        self.step: ConsistencyStep | None = None
+        if self.consistent:  # the step's separable operators give the model loads too
+            self.step = ConsistencyStep(forward)
+        else:
+            self.register_buffer("stress", forward.stress.clone())
+            self.register_buffer("sums", forward.sums.clone())
         # residual = sqrt(mean(((model - measured) / noise)^2)) = || (model - measured) w ||_2 with
         # w = 1 / (noise sqrt(N+M)); the difference first, as StripResidual takes it (model and
         # measured loads are large in noise units and close: their difference loses the least)
-        self.register_buffer("sums", forward.sums.clone())
         self.register_buffer("noise_weights", residual.inverse_noise / math.sqrt(strips))
         # balance = |rows - cols| / ((rows + cols) / 2 + floor); the frame total = the same half sum
         is_row = (torch.arange(strips) < n).to(torch.float32)
@@ -209,9 +211,6 @@ class DeployedStripNet(nn.Module):
         self.register_buffer("half_weights", torch.full((strips,), 0.5))
         self.register_buffer("total_weights", torch.full((strips, 1), 0.5))
         self.balance_floor = residual.floor
-        if self.consistent:  # the consistency step's back-projection, right-multiplied
-            self.register_buffer("sums_t", forward.sums.t().contiguous())
-            self.register_buffer("stress_t", forward.stress.t().contiguous())
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         n = self.n_rows
@@ -246,24 +245,13 @@ class DeployedStripNet(nn.Module):
         return (flat.reshape(-1, n, n), *self._consistency(flat, loads, total))
 
     def _consistent(self, flat: torch.Tensor, loads: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """The map after ``ConsistencyStep``, the residual of the map before it (the step's model
-        loads: no second pass through the forward model) and the balance."""
-        stress = flat @ self.stress
-        gain = law_gain(stress, self.p0_forward, self.exponent_forward)
-        if self.exponent_forward == 1.0:
-            slope = (1.0 - gain) * (1.0 - gain)  # (1 - f)^2 without a power node
-        else:
-            slope = (1.0 - gain).pow((self.exponent_forward + 1.0) / self.exponent_forward)
-        model = gain @ self.sums
-        # measured and model loads stacked on a leading axis of 2 (one Concat, one Split: fewer
-        # nodes than a stack on axis 1 and two gathers); the slope broadcasts over that axis
-        both = (torch.cat([loads, model], dim=0) @ self.sums_t).reshape(2, -1, self.sums_t.shape[1])
-        sides = (both * slope) @ self.stress_t + RATIO_EPS  # (2, B, N*M): J^T L and J^T L_model
-        numerator, denominator = sides.chunk(2, dim=0)
-        ratio = (numerator / denominator).clamp(max=RATIO_CAP)  # (1, B, N*M)
+        """The map after ``ConsistencyStep`` (its separable form), the residual of the map before it
+        (the step's model loads: no second pass through the forward model) and the balance."""
+        assert self.step is not None
+        maps, model = self.step.step(flat.reshape(-1, self.n_rows, self.n_cols), loads)
         residual = torch.linalg.vector_norm((model - loads) * self.noise_weights, dim=1)
         balance = (loads @ self.diff_weights).abs() / (loads @ self.half_weights + self.balance_floor)
-        return (flat * ratio).reshape(-1, self.n_rows, self.n_cols), residual, balance
+        return maps, residual, balance
 
     def _consistency(
         self, flat: torch.Tensor, loads: torch.Tensor, total: torch.Tensor

@@ -195,6 +195,7 @@ class TriangleGeometry:
 
 
 _ONE_FRAME, _FLOAT32 = (1, fsr.N_SENSORS), np.dtype(np.float32)  # a single frame that takes the fast path
+_ROW = (1, 6)  # a single frame's result
 _SCREEN_MODELS: dict[tuple[str, float], LoadModel] = {}
 
 
@@ -452,17 +453,20 @@ class TriangulationEstimator(Estimator):
         """:meth:`one_frame_run`, built in :meth:`prepare`: a frame of six whole codes that the
         input check passes as they are is six keys of the code -> load table (the look-up is the
         check), then :func:`.triangulation_one_frame.frame_predictor`."""
-        table, predict_loads = self.one_frame_.load_of_code, self.frame_predictor_
+        table, predict_loads, m = self.one_frame_.load_of_code, self.frame_predictor_, self.one_frame_.min_load
+        ndarray, zeros = np.ndarray, np.zeros
 
         def run(frames: Any) -> np.ndarray | None:
-            if type(frames) is np.ndarray and frames.shape == _ONE_FRAME and frames.dtype is _FLOAT32:
+            if type(frames) is ndarray and frames.shape == _ONE_FRAME and frames.dtype is _FLOAT32:
                 codes = frames.tolist()[0]
                 c0, c1, c2, c3, c4, c5 = codes
                 try:
-                    loads = [table[c0], table[c1], table[c2], table[c3], table[c4], table[c5]]
+                    l0, l1, l2, l3, l4, l5 = table[c0], table[c1], table[c2], table[c3], table[c4], table[c5]
                 except KeyError:  # the general check: its clear error, or the general path
                     return None
-                return predict_loads(codes, loads, True)
+                if l0 < m and l1 < m and l2 < m and l3 < m and l4 < m and l5 < m:  # most frames of a stream
+                    return zeros(_ROW, _FLOAT32)  # no contact: every column 0
+                return predict_loads(codes, (l0, l1, l2, l3, l4, l5), True)
             return None
 
         return run

@@ -9,9 +9,15 @@ bit), the triangles' matrices as tuples, the load model's constants. The loads a
 code for the whole codes the input check passes (:attr:`OneFrameTriangulation.load_of_code`): six
 dictionary look-ups check a frame and give its loads at once (a NaN, an infinite, saturated,
 negative or fractional code is no key: such a frame takes the general check). A frame whose six
-loads are all below the valid load is answered at once (no contact, all zeros). The results equal the batch
-path's to rounding (the same formulas in the same order; ``pow`` and friends may differ in the
-last bit from numpy's), which the tests check on many frames.
+loads are all below the valid load is answered at once with a new row of zeros; a frame with one
+valid sensor at once from that sensor (the contact on it: what every candidate triangle's fallback
+gives). The results equal the batch path's to rounding (the same formulas in the same order;
+``pow`` and friends may differ in the last bit from numpy's), which the tests check on many frames.
+
+At batch 1 a frame's cost is the number of bytecodes it runs, and more so on the first frames after
+other work (a batch, another program): those run several times slower while the interpreter's
+paths refill. :func:`frame_predictor` is therefore one function for the whole frame, with the
+steps that wrap others written out.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ from __future__ import annotations
 import math
 import struct
 from array import array
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from operator import itemgetter
 from typing import TYPE_CHECKING
 
@@ -110,12 +116,24 @@ class OneFrameTriangulation:
                 )
             )  # fmt: skip
         #: by the frame's valid sensors (bit k: sensor k at or above the valid load), the triangles
-        #: with the most of them: the winner is one of these (see :meth:`estimate_valid`)
-        sensors = [set(int(i) for i in tri) for tri in geometry.tris]
+        #: with the most of them: the winner is one of these (see :meth:`winner`). Where one sensor
+        #: alone is valid, every candidate gives the same answer (each triangle's fallback for fewer
+        #: than two valid sensors puts the contact on its strongest sensor, that one, with the same
+        #: force): only the first is kept, and :attr:`lone_sensor` names the sensor and its position
+        sensors = [[int(i) for i in tri] for tri in geometry.tris]
         self.candidates: list[tuple[int, ...]] = []
+        self.lone_sensor: list[tuple[int, float, float] | None] = []
         for mask in range(1 << 6):  # six sensors
             counts = [sum(mask >> i & 1 for i in tri) for tri in sensors]
-            self.candidates.append(tuple(t for t, n in enumerate(counts) if n == max(counts)))
+            chosen = tuple(t for t, n in enumerate(counts) if n == max(counts))
+            lone = None
+            if mask and not mask & (mask - 1):  # one bit: one valid sensor
+                chosen = chosen[:1]
+                k = mask.bit_length() - 1
+                x, y = self.triangles[chosen[0]][-1][sensors[chosen[0]].index(k)]  # its corner, as _solve reads it
+                lone = (k, x, y)
+            self.candidates.append(chosen)
+            self.lone_sensor.append(lone)
 
     def loads(self, codes: list[float]) -> list[float]:
         """Disc loads (N) of six ADC codes: whole codes from the table, others by the batch inverse."""
@@ -130,7 +148,7 @@ class OneFrameTriangulation:
             return [table[int(c)] for c in codes]
         return [float(v) for v in self.loads_from_readings(np.array([codes]))[0]]
 
-    def _solve(self, loads: list[float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
+    def _solve(self, loads: Sequence[float], tri: tuple) -> tuple[float, float, float, int, bool, float, float]:
         """One triangle's closed form with the fallbacks (``solve_triangles`` for one frame):
         x, y, force, valid sensors, inside, depth, summed load. (``min`` and ``max`` of two or
         three numbers written out as comparisons: the same first-of-equals and NaN behaviour.)"""
@@ -196,7 +214,13 @@ class OneFrameTriangulation:
         return (l0 >= m) | (l1 >= m) << 1 | (l2 >= m) << 2 | (l3 >= m) << 3 | (l4 >= m) << 4 | (l5 >= m) << 5
 
     def estimate_valid(self, loads: list[float], valid: int) -> list[float]:
-        """The five columns of a frame with contact (``valid``: its :meth:`valid`, not 0).
+        """The five columns of a frame with contact (``valid``: its :meth:`valid`, not 0)."""
+        x, y, force, n_valid, inside, _, _ = self.winner(loads, valid)
+        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+
+    def winner(self, loads: Sequence[float], valid: int) -> tuple[float, float, float, int, bool, float, float]:
+        """The winning triangle's :meth:`_solve` of a frame with contact (``valid``: its
+        :meth:`valid`, not 0).
 
         Only the triangles with the most valid sensors are solved: the winner's score counts its
         valid sensors in millions and everything else below 102,000, so no other triangle can win
@@ -204,13 +228,11 @@ class OneFrameTriangulation:
         """
         candidates = self.candidates[valid]
         if len(candidates) == 1:  # one candidate (most frames with contact)
-            x, y, force, n_valid, inside, _, _ = self._solve(loads, self.triangles[candidates[0]])
-        else:
-            x, y, force, n_valid, inside, _, _ = self._best_scored(loads, candidates)
-        return [x, y, force, 1.0, 0.5 if n_valid <= 1 else float(inside)]
+            return self._solve(loads, self.triangles[candidates[0]])
+        return self._best_scored(loads, candidates)
 
     def _best_scored(
-        self, loads: list[float], candidates: tuple[int, ...]
+        self, loads: Sequence[float], candidates: tuple[int, ...]
     ) -> tuple[float, float, float, int, bool, float, float]:
         """The best-scoring solution among the triangles with the most valid sensors."""
         # the summed loads are scaled by the largest of all four triangles' (as the batch path)
@@ -260,20 +282,38 @@ def frame_predictor(
     ADC codes, as the keys of the code -> load table are): the estimate, rounded to float32 in the
     output row, the one-press check on the rounded estimate (as the batch path reads it) and, for
     the half-space kernel, the fitted kernel's solution of the same loads as the check's screen
-    (``screen``: the same film, geometry and valid load, so the same valid sensors)."""
-    valid_of, estimate_valid, flag_inside = one.valid, one.estimate_valid, check.flag_inside
-    measured_of, measured_of_whole = check.measured, check.measured_of_whole
-    screen_estimate = None if screen is None else screen.estimate_valid
-    zeros, empty, min_load = np.zeros, np.empty, one.min_load
+    (``screen``: the same film, geometry and valid load, so the same valid sensors).
 
-    def predict_loads(codes: list[float], loads: list[float], whole: bool = False) -> np.ndarray:
-        l0, l1, l2, l3, l4, l5 = loads  # (valid_of written out: most frames of a stream stop here)
-        if l0 < min_load and l1 < min_load and l2 < min_load and l3 < min_load and l4 < min_load and l5 < min_load:
-            return zeros(_ROW, _FLOAT32)  # no contact: every column 0
-        valid = valid_of(loads)
-        if not valid:  # (a NaN load: not a valid sensor either)
+    One function for the whole frame: the valid sensors, the winning triangle (:meth:`~OneFrameTriangulation.winner`)
+    and the check's first test (:meth:`~tactile_learn.fsr_one_frame.OneFrameCheck.passes_at`)
+    written out here rather than called through the methods that wrap them (each call level and
+    intermediate list costs, and more so on the first frames after other work has run)."""
+    min_load, candidates, triangles, lone_sensor = one.min_load, one.candidates, one.triangles, one.lone_sensor
+    on_axis = one.on_axis
+    solve, best_scored = one._solve, one._best_scored
+    screen_winner = None if screen is None else screen.winner
+    measured_of, measured_of_whole, scale_of = check.measured, check.measured_of_whole, check._scale
+    passes_at, flag_refined = check.passes_at, check.flag_refined
+    zeros, empty = np.zeros, np.empty
+
+    def predict_loads(codes: list[float], loads: Sequence[float], whole: bool = False) -> np.ndarray:
+        l0, l1, l2, l3, l4, l5 = loads
+        m = min_load
+        valid = (l0 >= m) | (l1 >= m) << 1 | (l2 >= m) << 2 | (l3 >= m) << 3 | (l4 >= m) << 4 | (l5 >= m) << 5
+        if not valid:  # no contact (a NaN load is no valid sensor either): every column 0
             return zeros(_ROW, _FLOAT32)
-        x, y, force, _, p_inside = estimate_valid(loads, valid)
+        lone = lone_sensor[valid]
+        if lone is not None:  # one valid sensor: the contact on it (_solve's fallback), not checked
+            k, x, y = lone
+            force = max(loads[k], 0.0) / on_axis
+            force, p_inside = force if math.isfinite(force) else 0.0, 0.5
+        else:
+            chosen = candidates[valid]  # (OneFrameTriangulation.winner written out)
+            if len(chosen) == 1:
+                x, y, force, n_valid, inside, _, _ = solve(loads, triangles[chosen[0]])
+            else:
+                x, y, force, n_valid, inside, _, _ = best_scored(loads, chosen)
+            p_inside = 0.5 if n_valid <= 1 else float(inside)
         out = empty(_ROW, _FLOAT32)
         try:
             _PACK_ROW(out, 0, x, y, force, 1.0, p_inside, 0.5)
@@ -281,12 +321,17 @@ def frame_predictor(
             out[0] = array("f", (x, y, force, 1.0, p_inside, 0.5)).tolist()
         if p_inside > 0.5:  # (else 0.5: outside the triangles or undecided, not checked)
             x, y, force = _UNPACK_POINT(out)
-            point = None
-            if screen_estimate is not None:
-                sx, sy, sforce, _, _ = screen_estimate(loads, valid)
-                point = _float32_point(sx, sy, sforce)
             measured = measured_of_whole(codes) if whole else measured_of(codes)
-            _PACK_FLAG(out, 20, flag_inside(measured, x, y, force, point))
+            scale = scale_of(measured)
+            if screen_winner is None:  # the estimate as it is first
+                first = passes_at(measured, scale, x, y, force)
+            else:  # the screen's point as it is first (OneFrameCheck.flag_inside)
+                sx, sy, sforce, _, _, _, _ = screen_winner(loads, valid)
+                first = passes_at(measured, scale, *_float32_point(sx, sy, sforce))
+            if first:
+                _PACK_FLAG(out, 20, 1.0)
+            else:
+                _PACK_FLAG(out, 20, flag_refined(measured, scale, x, y, force, screen_winner is not None))
         return out
 
     return predict_loads
