@@ -44,6 +44,7 @@ VARIANTS: dict[str, tuple[tuple[str, ...], bool]] = {
     "approach+weighted": (("approach",), True),
     "contact_events": (("contact_events",), False),
     "contact_events+weighted": (("contact_events",), True),
+    "drift_ends": (("drift_ends",), False),
 }
 
 

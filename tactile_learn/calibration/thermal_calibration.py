@@ -71,6 +71,7 @@ from synth.materials import Material
 from synth.sensors.thermal.approach import approach_term
 from synth.sensors.thermal.contact_events import contact_event_terms
 from synth.sensors.thermal.dynamics import ChannelModel, channel_terms, nuisance_terms
+from synth.sensors.thermal.readout import drift_ending_at_contact
 from tactile_learn.calibration.thermal_events import place_events
 from tactile_learn.calibration.thermal_kinks import residual_kinks, residual_windows
 
@@ -107,7 +108,15 @@ PRIOR_LINEAR_SD = 1.0
 #: local minima without making two sessions agree (the report lists what the data leave free)
 PRIOR_WEIGHT = 0.0
 #: per-touch nuisance terms the fit may add (see synth.sensors.thermal.dynamics.nuisance_terms)
-NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor", "approach", "contact_events")
+NUISANCE_TERMS = ("object_flux", "heater_steps", "contact_precursor", "approach", "contact_events", "drift_ends")
+#: the pre-contact drift as a READING-side change that the contact ends (``"drift_ends"`` in
+#: ``nuisance``; synth.sensors.thermal.readout.drift_ending_at_contact): on these channels the drift's
+#: slope relaxes to 0 from the contact's start through its own lag (a shared parameter per channel,
+#: ``<channel>.drift_end_s``), with no net heating after the contact, in place of the default drift
+#: (a heater still settling, which goes on heating through the contact and the lags)
+DRIFT_ENDS_CHANNELS: tuple[str, ...] = ("heated",)
+#: the drift's end lag's bounds (s)
+DRIFT_END_S = (0.01, 5.0)
 #: the approach (``"approach"`` in ``nuisance``; synth.sensors.thermal.approach): heat through the
 #: closing air gap before the contact, no per-touch amplitude but two SHARED parameters (the
 #: effective residual gap g0 and the approach speed); the gap's flux is integrated over this
@@ -131,6 +140,8 @@ EVENT_SHIFT_S = (-0.15, 0.15)
 EVENT_HZ = 25.0
 #: the contact precursor's length (s before the contact start): see NUISANCE_TERMS
 PRECURSOR_S = 0.6
+#: the terms with shared parameters only (no per-touch amplitude)
+_SHARED_TERMS = ("approach", "drift_ends")
 _NUISANCE_DOC = {
     "object_flux": "the object's flux F = k g (its temperature not uniform with depth: a cooled block warming "
     "from its surface)",
@@ -141,6 +152,8 @@ _NUISANCE_DOC = {
     "k_air), k_air = 0.026 W/(m K): no amplitude of its own",
     "contact_events": "contact events: each channel's contact conductance steps by a bounded factor at the kinks "
     "of its residual (slip or creep of the pad; one event time for both channels)",
+    "drift_ends": "(shared) the pre-contact drift a reading-side change that the contact ends through its own lag "
+    "(no net heating after the contact)",
 }
 #: the joint refinement (shared + every touch's own contact) fits every sample in units of its
 #: noise s.d. (white noise and timing jitter, see noise_levels), with weak priors (PRIOR_ROW_TOUCH_K):
@@ -322,6 +335,12 @@ class _Problem:
         ]
         self.n = len(touches)
         self.passive = all(t.passive is not None for t in touches)
+        #: the channels whose pre-contact drift the contact ends (see DRIFT_ENDS_CHANNELS)
+        self.drift_end_channels = tuple(
+            ch
+            for ch in (("heated", "passive") if self.passive else ("heated",))
+            if "drift_ends" in self.nuisance and ch in DRIFT_ENDS_CHANNELS
+        )
         if "contact_precursor" in self.nuisance and self.passive:
             self.nuisance_columns.append("passive_precursor_k")
         #: the joint refinement fits in noise units (see NOISE_WEIGHTED)
@@ -377,6 +396,9 @@ class _Problem:
                 Parameter("approach.gap_um", "um", 1.0, 3000.0, 200.0, True, "residual air gap g0 at contact")
             )
             params.append(Parameter("approach.speed_mm_s", "mm/s", 0.1, 50.0, 2.0, True, "approach speed v"))
+        for ch in self.drift_end_channels:
+            doc = "lag with which the contact ends the reading's pre-contact drift"
+            params.append(Parameter(f"{ch}.drift_end_s", "s", *DRIFT_END_S, 0.3, True, doc))
         self.shared = params
         self.per_touch: list[Parameter] = []
         #: per-touch contact quality: every channel's H times this (1 in the shared fit)
@@ -464,6 +486,19 @@ class _Problem:
             twin.weight = twin._noise_weights(noise)
             twin.noise_weighted = True
         return twin
+
+    def fit_from(self, x0: np.ndarray, nfev: int) -> optimize.OptimizeResult:
+        """A bounded least-squares run of at most ``nfev`` evaluations from ``x0`` (clipped inside
+        the bounds), forward differences: one run of the multi-start."""
+        lo, hi = self.bounds()
+        return optimize.least_squares(
+            self.residuals,
+            np.clip(x0, lo + 1e-9, hi - 1e-9),
+            bounds=(lo, hi),
+            x_scale="jac",
+            max_nfev=nfev,
+            diff_step=1e-5,
+        )
 
     @property
     def n_free(self) -> int:
@@ -557,16 +592,20 @@ class _Problem:
                 if more.precursor is not None:  # each channel's own column (its own V0 and place on the pad)
                     extra[c, :, :, self.nuisance_columns.index(f"{ch}_precursor_k")] = more.precursor
             lead_lag = values[f"{ch}.lag_s"] + values[f"{ch}.lag2_s"]
+            reading_drift = ch in self.drift_end_channels
             # reading = R0 + r drift + (R0 + r lead_lag - T_obj) obj: T_obj's column is -obj
             cols[c, :, :, 0] = 1.0 + obj
             cols[c, :, :, 1] = drift + lead_lag * obj
+            if reading_drift:  # the reading drifts, not the body: V0 = R0 - T_obj, no heating after
+                cols[c, :, :, 1] = drift_ending_at_contact(t_rel, values[f"{ch}.drift_end_s"])
             cols[c, :, :, 2] = -obj
             if step is not None:
                 # the heater's power at the switch: its loss to the ambient plus the net heating,
                 # Q = G (R0 + r lead_lag - T_amb) + C r; it drops to 0 at t_off
                 g, cap = values[f"{ch}.loss_w_m2k"], values[f"{ch}.heat_capacity_j_m2k"]
                 cols[c, :, :, 0] -= g * step
-                cols[c, :, :, 1] -= (g * lead_lag + cap) * step
+                if not reading_drift:  # a reading-side drift heats nothing
+                    cols[c, :, :, 1] -= (g * lead_lag + cap) * step
                 power = g * step  # the column of T_amb (shared by every touch)
         return cols, power, extra
 
@@ -692,15 +731,7 @@ def calibrate_channels(
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
 
-    def run(x0: np.ndarray, nfev: int) -> optimize.OptimizeResult:
-        return optimize.least_squares(
-            problem.residuals,
-            np.clip(x0, lo + 1e-9, hi - 1e-9),
-            bounds=(lo, hi),
-            x_scale="jac",
-            max_nfev=nfev,
-            diff_step=1e-5,
-        )
+    run = problem.fit_from
 
     # multi-start: short runs from the default start and random points of the (log) box, then the
     # best one runs to convergence
@@ -857,6 +888,8 @@ _BOUND_REASONS = {
     "~40 um) changes nothing the curves show, so it is not identified either; the approach speed carries the term",
     ("speed_mm_s", "upper"): "the gap closes faster than the samples resolve: the approach acts as a step at contact",
     ("speed_mm_s", "lower"): "the gap stays narrow for the whole window: the approach is a slow, flat exchange",
+    ("drift_end_s", "lower"): "the contact ends the reading's drift faster than the samples resolve (a kink)",
+    ("drift_end_s", "upper"): "the drift goes on through the contact: the contact does not end it",
     ("", ""): "the data push it there: the model lacks something the curves show (check the residual)",
 }
 
@@ -953,7 +986,7 @@ def _report(
             if problem.heater_off and "heater_steps" not in problem.nuisance
             else ""
         )
-        + "".join(f" + {'' if n == 'approach' else 'per touch: '}{_NUISANCE_DOC[n]}" for n in problem.nuisance),
+        + "".join(f" + {'' if n in _SHARED_TERMS else 'per touch: '}{_NUISANCE_DOC[n]}" for n in problem.nuisance),
         "parameters": params,
         "at_bound": at_bound,
         "not_identified": unidentified,

@@ -6,7 +6,22 @@ import numpy as np
 
 from synth.sensors.thermal.config import ReadoutConfig
 
-__all__ = ["Readout"]
+__all__ = ["Readout", "drift_ending_at_contact"]
+
+
+def drift_ending_at_contact(t: np.ndarray, tau_s: float | np.ndarray) -> np.ndarray:
+    """A reading-side drift of unit slope (K/s) that the contact ends, per K/s of its slope.
+
+    ``t``: time from the contact's start (s). Before it the reading drifts as ``t``; from it on the
+    drift's slope relaxes to 0 through a first-order lag ``tau_s`` (s):
+    ``d(t) = tau (1 - exp(-t / tau))`` for ``t >= 0`` (the solution of ``tau d'' + d' = 0`` from a
+    slope of 1 at ``t = 0``, continuous with its slope). No heat is involved: the body's temperature
+    does not follow the drift, so nothing continues as net heating after the contact (what the
+    calibration's default drift, a heater still settling, does)."""
+    tau = np.asarray(tau_s, dtype=float)
+    # clamp: exp of a non-positive argument only (t < 0 takes the other branch); tau > 0
+    after = tau * -np.expm1(-np.maximum(t, 0.0) / np.maximum(tau, 1e-9))
+    return np.where(t < 0.0, t, after)
 
 
 class Readout:
