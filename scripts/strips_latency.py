@@ -12,8 +12,8 @@ import os
 import sys
 
 from synth.dataset import simulate_shard
-from synth.io import atomic_write_json
 from synth.scene import load_scene
+from tactile_learn.bench import record_run
 from tactile_learn.methods import resolve_method
 from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.timing import interleaved_times, summary_us
@@ -35,20 +35,15 @@ def main(argv: list[str] | None = None) -> int:
     load_before = os.getloadavg()
     calls = {name: est.predict for name, est in methods.items()}
     times = interleaved_times(calls, readings, rounds=args.rounds, per_round=args.per_round, warmup=50)
-    load_after = os.getloadavg()
     summaries = {k: summary_us(v) for k, v in times.items()}
     result = {
         "median_us": {k: v["median_us"] for k, v in summaries.items()},
         "p90_us": {k: v["p90_us"] for k, v in summaries.items()},
         "calls_per_method": args.rounds * args.per_round,
-        "load_average_1min": [load_before[0], load_after[0]],
-        "command": "python scripts/strips_latency.py " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
     for name in methods:
         print(f"{name:40s} median {result['median_us'][name]:8.1f} us   p90 {result['p90_us'][name]:8.1f} us")
-    print(f"load average (1 min) before / after: {load_before[0]:.2f} / {load_after[0]:.2f}")
-    if args.json:
-        atomic_write_json(args.json, result)
+    record_run(result, "strips_latency.py", argv, load_before[0], args.json)
     return 0
 
 

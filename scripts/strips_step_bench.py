@@ -25,9 +25,9 @@ import torch
 from torch import nn
 
 from synth.dataset import simulate_shard
-from synth.io import atomic_write_json
 from synth.scene import load_scene
 from synth.sensors.strips import StripSensor
+from tactile_learn.bench import record_run
 from tactile_learn.export import to_onnx
 from tactile_learn.nets.strip_blocks import law_gain
 from tactile_learn.nets.strips_consistent import RATIO_CAP, RATIO_EPS, ConsistencyStep
@@ -140,15 +140,12 @@ def main(argv: list[str] | None = None) -> int:
         rounds=bulk_rounds,
         warmup=2,
     )
-    load_after = os.getloadavg()
     result: dict[str, Any] = {
         "batch1_median_us": {k: summary_us(v)["median_us"] for k, v in single.items()},
         "batch1_p10_us": {k: float(np.percentile(v, 10) * 1e6) for k, v in single.items()},
         f"batch{args.batch}_per_frame_median_us": {k: summary_us(v)["median_us"] / args.batch for k, v in bulk.items()},
         "max_abs_diff_maps_kpa": float(np.abs(dense[0] - separable[0]).max()),
         "max_abs_diff_model_loads": float(np.abs(dense[1] - separable[1]).max()),
-        "load_average_1min": [load_before[0], load_after[0]],
-        "command": "python scripts/strips_step_bench.py " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
     for name in forms:
         print(
@@ -160,9 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         f"dense vs separable: maps max |diff| {result['max_abs_diff_maps_kpa']:.3g} kPa, "
         f"model loads {result['max_abs_diff_model_loads']:.3g}"
     )
-    print(f"load average (1 min) before / after: {load_before[0]:.2f} / {load_after[0]:.2f}")
-    if args.json:
-        atomic_write_json(args.json, result)
+    record_run(result, "strips_step_bench.py", argv, load_before[0], args.json)
     return 0
 
 
