@@ -16,7 +16,7 @@ from synth.config import replace
 from synth.errors import ConfigError, DataError
 from synth.scene import load_scene, parse_scene
 from synth.sensors.thermal import make_simulator
-from tactile_learn.calibration.thermal_calibration import noise_levels
+from tactile_learn.calibration.thermal_calibration import _Problem, noise_levels, prepare_touches
 from tactile_learn.cli import main
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import calibrate_recordings, write_scene
@@ -108,6 +108,14 @@ def simulated_series(
         heated.append((t, h, onset))
         passive.append((t, p, onset))
     return series, {"heated": noise_levels(heated), "passive": noise_levels(passive)}, arrays
+
+
+def problems_without_and_with(nuisance: str, classes: list) -> tuple[_Problem, _Problem]:
+    """Two simulated touches of the robot scene as heated + passive calibration problems: the
+    default one and one with the opt-in ``nuisance`` term (a term's tests compare the two)."""
+    series, _, _ = simulated_series(robot_scene(), 2, 5)
+    touches = prepare_touches(series)
+    return _Problem(touches, classes, True), _Problem(touches, classes, True, (nuisance,))
 
 
 def robot_touches(n: int, seed: int, scene: object = None) -> list[Touch]:

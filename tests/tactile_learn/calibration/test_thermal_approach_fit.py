@@ -11,7 +11,7 @@ from scipy import optimize
 
 from synth.materials import get_material
 from tactile_learn.calibration.thermal_calibration import PRIOR_ROW_TOUCH_K, _Problem, prepare_touches
-from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
+from tests.tactile_learn.test_thermal_real import problems_without_and_with, robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 
@@ -60,11 +60,7 @@ def test_gap_and_speed_are_recovered() -> None:
 
 
 def test_the_approach_adds_two_shared_parameters_and_no_column() -> None:
-    scene = robot_scene()
-    series, _, _ = simulated_series(scene, 2, 5)
-    touches = prepare_touches(series)
-    plain = _Problem(touches, CLASSES, True)
-    more = _Problem(touches, CLASSES, True, ("approach",))
+    plain, more = problems_without_and_with("approach", CLASSES)
     assert [p.name for p in more.shared][-2:] == ["approach.gap_um", "approach.speed_mm_s"]
     assert more.n_free == plain.n_free + 2 and more.nuisance_columns == plain.nuisance_columns == []
     # the approach only adds to the object's column: with a negligible gap exchange the curves agree

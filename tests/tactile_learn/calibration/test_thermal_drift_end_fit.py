@@ -12,7 +12,7 @@ from scipy import optimize
 
 from synth.materials import get_material
 from tactile_learn.calibration.thermal_calibration import PRIOR_ROW_TOUCH_K, _Problem, prepare_touches
-from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
+from tests.tactile_learn.test_thermal_real import problems_without_and_with, robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 
@@ -79,11 +79,7 @@ def test_no_drift_is_found_where_there_is_none() -> None:
 
 
 def test_drift_ends_adds_one_shared_lag_and_no_heating() -> None:
-    scene = robot_scene()
-    series, _, _ = simulated_series(scene, 2, 5)
-    touches = prepare_touches(series)
-    plain = _Problem(touches, CLASSES, True)
-    more = _Problem(touches, CLASSES, True, ("drift_ends",))
+    plain, more = problems_without_and_with("drift_ends", CLASSES)
     assert [p.name for p in more.shared][-1] == "heated.drift_end_s" and more.n_free == plain.n_free + 1
     a, b = plain.design(plain.start())[0], more.design(more.start())[0]
     # only the heated drift's column changes: the rest of the design is the same
