@@ -37,6 +37,7 @@ from synth.sensors.strips.mechanics import StripArray
 from synth.stimuli import BLOB_BUMPS, BLOB_CUTOFF
 from synth.suite import load_suite
 from tactile_learn.methods import resolve_method
+from tactile_learn.metrics import pearson_per_frame
 
 FAMILY = "blob_field"
 SHARD = 1000  # a shard's frames share one random stream: noise draws would shift the next chunk's shapes
@@ -44,17 +45,6 @@ SHARD = 1000  # a shard's frames share one random stream: noise draws would shif
 
 def family_scene() -> Scene:
     return load_suite("strips16_ood").family(FAMILY).scene
-
-
-def pearson_r(pred: np.ndarray, truth: np.ndarray) -> np.ndarray:
-    """Per-frame Pearson r of maps (B, ...); NaN where the truth is flat."""
-    p = pred.reshape(len(pred), -1).astype(np.float64)
-    t = truth.reshape(len(truth), -1).astype(np.float64)
-    p = p - p.mean(1, keepdims=True)
-    t = t - t.mean(1, keepdims=True)
-    tt = (t * t).sum(1)
-    den = np.sqrt((p * p).sum(1) * tt)
-    return np.where(tt > 1e-12, (p * t).sum(1) / np.maximum(den, 1e-30), np.nan)
 
 
 def paired(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
@@ -114,16 +104,16 @@ def noise_share(test: dict[str, np.ndarray], models: list[str]) -> dict[str, Any
     out: dict[str, Any] = {}
     for method in ["intersection", "projection", *models]:
         estimator = resolve_method("strips", method, scene, threads=1)
-        r = {key: pearson_r(estimator.predict(test[key]), test["pressure"]) for key in READINGS}
+        r = {key: pearson_per_frame(estimator.predict(test[key]), test["pressure"]) for key in READINGS}
         out[method] = {name: float(np.nanmean(r[key])) for key, name in READINGS.items()}
-        out[method]["_r"] = r["readings"]
+        out[method]["_r"] = r
     return out
 
 
 # -- 2. specialist ------------------------------------------------------------------------------
 
 
-def specialist(args: argparse.Namespace, test: dict[str, np.ndarray], rule_r: np.ndarray) -> dict[str, Any]:
+def specialist(args: argparse.Namespace, test: dict[str, np.ndarray], rule_r: dict[str, np.ndarray]) -> dict[str, Any]:
     import torch
 
     from tactile_learn.nets.strips_rule_correction import pearson_loss
@@ -131,26 +121,65 @@ def specialist(args: argparse.Namespace, test: dict[str, np.ndarray], rule_r: np
 
     torch.set_num_threads(1)
     keys = ("readings", "pressure")
-    train = draw(training_scene(), args.n_train, args.train_seed, keys)
-    val = draw(training_scene(), args.n_val, args.val_seed, keys)
+    ideal = args.specialist_readings == "ideal"
+    # the control: the same learner on readings without any noise, where the fits say the field is nearly identified
+    scene = quiet(training_scene(), gain_spread=False) if ideal else training_scene()
+    test_key = "readings_ideal" if ideal else "readings"
+    train = draw(scene, args.n_train, args.train_seed, keys)
+    val = draw(scene, args.n_val, args.val_seed, keys)
     config = RuleCorrectionConfig(hidden=args.hidden, epochs=args.epochs, seed=args.train_seed)
     start = time.perf_counter()
     net, history = train_rule_correction(
         family_scene(), (train["readings"], train["pressure"]), (val["readings"], val["pressure"]), config, print
     )
+    linear = linear_correction(train, test, test_key, rule_r[test_key])
+    print(f"linear correction: {linear}", flush=True)
     with torch.inference_mode():
-        pred = net(strip_loads_f32(family_scene(), test["readings"])).numpy()
-    r = pearson_r(pred, test["pressure"])
+        pred = net(strip_loads_f32(family_scene(), test[test_key])).numpy()
+    r = pearson_per_frame(pred, test["pressure"])
     loss = float(pearson_loss(torch.from_numpy(pred), torch.from_numpy(test["pressure"])))
     return {
+        "readings": READINGS[test_key],
         "config": dataclasses.asdict(config),
         "frames": {"train": args.n_train, "val": args.n_val},
         "val_r_by_epoch": history,
         "test_r": float(np.nanmean(r)),
         "test_loss": loss,
-        "gain_over_rule": paired(r, rule_r),
+        "gain_over_rule": paired(r, rule_r[test_key]),
         "seconds": time.perf_counter() - start,
+        "linear_correction": linear,
     }
+
+
+def linear_correction(
+    train: dict[str, np.ndarray], test: dict[str, np.ndarray], test_key: str, rule_r: np.ndarray
+) -> dict[str, Any]:
+    """The linear posterior mean on the rule's features: the map over the rule map's sum as a ridge
+    regression on (the rule's map over its sum, the loads over their total, 1)."""
+    scene = family_scene()
+    rule = resolve_method("strips", "intersection", scene, threads=1)
+    sensor = StripSensor(scene.sensor)
+
+    def features(readings: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        maps = np.concatenate([rule.predict(readings[i : i + 5000]) for i in range(0, len(readings), 5000)])
+        maps = maps.reshape(len(readings), -1).astype(np.float64)
+        loads = sensor.invert_readings(readings.astype(np.float64))
+        scale = maps.sum(1, keepdims=True)
+        total = loads.sum(1, keepdims=True)
+        ok = (scale[:, 0] > 0) & (total[:, 0] > 0)
+        f = np.hstack([maps / np.maximum(scale, 1e-12), loads / np.maximum(total, 1e-12), np.ones((len(maps), 1))])
+        return f, scale, ok
+
+    f_tr, scale_tr, ok_tr = features(train["readings"])
+    target = train["pressure"].reshape(len(f_tr), -1) / np.maximum(scale_tr, 1e-12)
+    gram = f_tr[ok_tr].T @ f_tr[ok_tr]
+    ridge = 1e-6 * np.trace(gram) / len(gram)  # a whisker of ridge: the map features are nearly collinear
+    weights = np.linalg.solve(gram + ridge * np.eye(len(gram)), f_tr[ok_tr].T @ target[ok_tr])
+    f_te, _, ok_te = features(test[test_key])
+    fallback = rule.predict(test[test_key]).reshape(len(f_te), -1)
+    pred = np.where(ok_te[:, None], f_te @ weights, fallback)  # an idle frame keeps the rule's zero map
+    r = pearson_per_frame(pred, test["pressure"])
+    return {"test_r": float(np.nanmean(r)), "gain_over_rule": paired(r, rule_r)}
 
 
 # -- 3. ambiguity: the family's exact generative model -----------------------------------------
@@ -254,15 +283,15 @@ def ambiguity(
             costs = np.array([f.cost for f in fits])
             maps = model(np.stack([f.x for f in fits]))[1]
             truth = test["pressure"][i][None]
-            r = np.array([pearson_r(m[None], truth)[0] for m in maps])
+            r = np.array([pearson_per_frame(m[None], truth)[0] for m in maps])
             good = costs <= cost_truth + 1.0  # within one unit of log-likelihood of the truth's
-            rows["rule"].append(float(pearson_r(rule_maps[key][i][None], truth)[0]))
+            rows["rule"].append(float(pearson_per_frame(rule_maps[key][i][None], truth)[0]))
             rows["best_fit"].append(float(r[costs.argmin()]))
             rows["cost_truth"].append(cost_truth)
             rows["cost_best"].append(float(costs.min()))
             rows["as_good"].append(float(r[good].mean()) if good.any() else float("nan"))
             mean_map = maps[good].mean(0) if good.any() else maps[costs.argmin()]
-            rows["mean_as_good"].append(float(pearson_r(mean_map[None], truth)[0]))
+            rows["mean_as_good"].append(float(pearson_per_frame(mean_map[None], truth)[0]))
         arr = {k: np.array(v) for k, v in rows.items()}
         out[READINGS[key]] = {
             "frames": len(loads_all),
@@ -289,7 +318,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n-val", type=int, default=20_000)
     parser.add_argument("--val-seed", type=int, default=777)
     parser.add_argument("--hidden", type=int, default=512)
-    parser.add_argument("--epochs", type=int, default=8)
+    parser.add_argument("--epochs", type=int, default=8, help="the specialist's epochs (0: skip it)")
+    parser.add_argument(
+        "--specialist-readings",
+        choices=("noisy", "ideal"),
+        default="noisy",
+        help="train and test the specialist on the scene's readings or on readings without noise and gain spread",
+    )
     parser.add_argument("--fit-frames", type=int, default=60, help="frames fitted per readings kind (0: skip)")
     parser.add_argument("--fit-starts", type=int, default=8)
     parser.add_argument("--n-library", type=int, default=20_000)
@@ -307,7 +342,7 @@ def main(argv: list[str] | None = None) -> int:
     for method, figures in noise.items():
         r = figures.pop("_r", None)
         if r is not None:
-            figures["minus_rule"] = paired(r, rule_r)
+            figures["minus_rule"] = paired(r["readings"], rule_r["readings"])
         print(f"{method}: {figures}", flush=True)
     result: dict[str, Any] = {"family": FAMILY, "test": {"frames": args.n_test, "seed": args.test_seed}, "noise": noise}
     if args.epochs > 0:
