@@ -1,0 +1,109 @@
+"""Bad input a new user gives the CLI (results/user_audit.md): each case a clear one-line error, exit 2,
+no traceback and nothing half-written. Each test failed before its fix."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from synth.dataset import load_arrays
+from synth.errors import DataError
+from tactile_learn.cli import main
+from tactile_learn.idle import IdleGate
+
+
+def fails_cleanly(argv: list[str], fragment: str, capsys: pytest.CaptureFixture[str]) -> str:
+    code = main(argv)
+    _, err = capsys.readouterr()
+    assert code == 2, err
+    assert fragment in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    return err
+
+
+def strips5_frames(n: int) -> np.ndarray:
+    return np.full((n, 10), 0.3, np.float32)
+
+
+def test_run_refuses_a_file_without_frames(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the gate's active() failed on an empty batch (a reshape traceback)
+    np.savez("empty.npz", readings=strips5_frames(0))
+    argv = ["run", "--task", "strips", "--method", "strips5", "--frames", "empty.npz", "--out", "o.npz"]
+    fails_cleanly(argv, "holds no frames", capsys)
+    assert not Path("o.npz").exists()
+
+
+def test_idle_gate_answers_an_empty_batch() -> None:
+    gate = IdleGate.from_floor({"mean": [0.0] * 4, "sd": [1.0] * 4, "threshold": 3.0}, 4)
+    assert gate.active(np.zeros((0, 4), np.float32)).shape == (0,)
+    assert gate.active(np.array([[0.0, 0.0, 5.0, 0.0]], np.float32)).tolist() == [True]
+
+
+@pytest.mark.parametrize(
+    ("content", "fragment"),
+    [
+        ("truncated", "not a readable .npz file: truncated or corrupt"),
+        ("text", "not a zip archive"),
+        ("npy", "it is a single .npy array"),
+        ("empty", "not a readable .npz file: it is empty"),
+    ],
+)
+def test_unreadable_frame_files_are_named(
+    content: str, fragment: str, workdir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # a truncated archive raised zipfile.BadZipFile (a traceback); a text file was "pickled data"
+    np.savez("good.npz", readings=strips5_frames(40))
+    whole = Path("good.npz").read_bytes()
+    if content == "truncated":
+        Path("f.npz").write_bytes(whole[: len(whole) // 2])
+    elif content == "text":
+        Path("f.npz").write_text("time,reading\n0,0.3\n")
+    elif content == "npy":
+        np.save("f.npy", strips5_frames(4))
+        Path("f.npy").rename("f.npz")
+    else:
+        Path("f.npz").write_bytes(b"")
+    with pytest.raises(DataError, match=re.escape(fragment)):
+        load_arrays("f.npz")
+    argv = ["run", "--task", "strips", "--method", "intersection", "--frames", "f.npz", "--out", "o.npz"]
+    fails_cleanly(argv, fragment, capsys)
+    assert not Path("o.npz").exists()
+
+
+def test_a_damaged_member_of_an_npz_is_named(workdir: Path) -> None:
+    # the zip's directory intact, an array's bytes flipped: zipfile's CRC check (BadZipFile)
+    np.savez("good.npz", readings=strips5_frames(400))
+    data = bytearray(Path("good.npz").read_bytes())
+    data[200] ^= 0xFF
+    Path("f.npz").write_bytes(bytes(data))
+    with pytest.raises(DataError, match=r"f\.npz: not a readable \.npz file: truncated or corrupt"):
+        load_arrays("f.npz")
+
+
+def test_eval_refuses_nan_in_the_truth(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the metrics came out NaN (pearson_r 0, nrmse nan) with exit 0
+    pressure = np.zeros((6, 5, 5), np.float32)
+    pressure[4, 2, 2] = np.nan
+    np.savez("e.npz", readings=strips5_frames(6), pressure=pressure)
+    argv = ["eval", "--task", "strips", "--data", "e.npz", "--scene", "strips5", "--method", "intersection"]
+    fails_cleanly(argv, "'pressure' holds NaN or inf (first in frame 4)", capsys)
+
+
+def test_generate_into_a_file_is_refused_and_the_file_kept(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # mkdir raised FileExistsError (a traceback)
+    Path("notes.txt").write_text("mine")
+    argv = ["generate", "--scene", "strips5", "--n", "5", "--seed", "1", "--out", "notes.txt", "--quiet"]
+    fails_cleanly(argv, "is a file, not a dataset folder", capsys)
+    assert Path("notes.txt").read_text() == "mine"
+
+
+def test_generate_refuses_zero_samples(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --n 0 wrote an empty dataset with exit 0
+    with pytest.raises(SystemExit) as exit_info:
+        main(["generate", "--scene", "strips5", "--n", "0", "--seed", "1", "--out", "d", "--quiet"])
+    assert exit_info.value.code == 2
+    assert "--n: expected a positive integer" in capsys.readouterr().err
+    assert not Path("d").exists()
