@@ -107,3 +107,16 @@ def test_generate_refuses_zero_samples(workdir: Path, capsys: pytest.CaptureFixt
     assert exit_info.value.code == 2
     assert "--n: expected a positive integer" in capsys.readouterr().err
     assert not Path("d").exists()
+
+
+def test_simulate_help_gives_each_lattice_as_the_scene_has_it() -> None:
+    # the help showed no capacitive stimulus: a user had to find geometry.lattice_shape in the code
+    from synth.scene import load_scene
+    from tactile_learn.cli.simulate import EXAMPLES
+
+    strips = load_scene("strips16").sensor.geometry
+    cap = load_scene("capacitive8").sensor.geometry
+    fine = (strips.n_rows * strips.samples_per_pitch, strips.n_cols * strips.samples_per_pitch)
+    assert f"strips16: {fine} cells of {strips.pitch_mm / strips.samples_per_pitch:g} mm" in EXAMPLES
+    assert f"capacitive8: (F, {cap.lattice_shape[0]}, {cap.lattice_shape[1]}) cells of {cap.h_mm:g} mm" in EXAMPLES
+    assert f"{cap.pad_cells} of them padding" in EXAMPLES
