@@ -96,6 +96,8 @@ def parse_scene(data: dict[str, Any], source: str = "<scene>") -> Scene:
     """Validate a scene given as a dict (the parsed TOML). Errors name ``source`` and the key."""
     try:
         task = data.get("task")
+        if task is None:
+            raise ConfigError(f"task: missing (a scene names its sensor: task = one of {', '.join(TASKS)})")
         if task not in TASKS:
             raise ConfigError(f"task: {task!r} is not one of {', '.join(TASKS)}")
         unknown = sorted(set(data) - set(_TOP_KEYS) - {task})

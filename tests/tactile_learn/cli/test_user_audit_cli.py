@@ -120,3 +120,11 @@ def test_simulate_help_gives_each_lattice_as_the_scene_has_it() -> None:
     assert f"strips16: {fine} cells of {strips.pitch_mm / strips.samples_per_pitch:g} mm" in EXAMPLES
     assert f"capacitive8: (F, {cap.lattice_shape[0]}, {cap.lattice_shape[1]}) cells of {cap.h_mm:g} mm" in EXAMPLES
     assert f"{cap.pad_cells} of them padding" in EXAMPLES
+
+
+def test_a_scene_file_without_a_task_says_it_is_missing(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # an empty scene file said "task: None is not one of ..."
+    Path("empty.toml").write_text("")
+    argv = ["generate", "--scene", "empty.toml", "--n", "5", "--seed", "1", "--out", "d", "--quiet"]
+    fails_cleanly(argv, "task: missing (a scene names its sensor: task = one of strips", capsys)
+    assert not Path("d").exists()
