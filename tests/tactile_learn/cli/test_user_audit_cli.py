@@ -128,3 +128,13 @@ def test_a_scene_file_without_a_task_says_it_is_missing(workdir: Path, capsys: p
     argv = ["generate", "--scene", "empty.toml", "--n", "5", "--seed", "1", "--out", "d", "--quiet"]
     fails_cleanly(argv, "task: missing (a scene names its sensor: task = one of strips", capsys)
     assert not Path("d").exists()
+
+
+def test_calibrate_names_the_tasks_that_have_a_calibration(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --task strips raised NotImplementedError (a traceback)
+    np.savez("p.npz", readings=strips5_frames(3))
+    argv = ["calibrate", "--task", "strips", "--data", "p.npz", "--out", "s.toml"]
+    fails_cleanly(
+        argv, "--task strips: this sensor has no calibration (calibrate supports thermal, fsr, capacitive)", capsys
+    )
+    assert not Path("s.toml").exists()
