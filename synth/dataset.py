@@ -268,8 +268,11 @@ class Dataset:
         if not self.path.is_dir():
             raise DataError(f"{self.path}: no such dataset folder")
         if not manifest_path.is_file():
-            hint = " (generation was interrupted: rerun the same generate command to finish it)"
-            raise DataError(f"{self.path}: no manifest.json{hint if (self.path / GENERATION).exists() else ''}")
+            if (self.path / GENERATION).exists():
+                hint = " (generation was interrupted: rerun the same generate command to finish it)"
+            else:  # e.g. a recordings folder where a dataset or an .npz is read
+                hint = " (not a dataset folder: tactile-learn generate writes those; or give an .npz file)"
+            raise DataError(f"{self.path}: no manifest.json{hint}")
         try:
             self.manifest: dict[str, Any] = json.loads(manifest_path.read_text())
         except ValueError as exc:

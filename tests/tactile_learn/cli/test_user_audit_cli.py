@@ -138,3 +138,12 @@ def test_calibrate_names_the_tasks_that_have_a_calibration(workdir: Path, capsys
         argv, "--task strips: this sensor has no calibration (calibrate supports thermal, fsr, capacitive)", capsys
     )
     assert not Path("s.toml").exists()
+
+
+def test_a_folder_that_is_not_a_dataset_says_so(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a recordings folder given to calibrate --task fsr said only "no manifest.json"
+    Path("touches").mkdir()
+    Path("touches/touches.csv").write_text("file,material\n")
+    argv = ["calibrate", "--task", "fsr", "--data", "touches", "--out", "film.toml"]
+    fails_cleanly(argv, "no manifest.json (not a dataset folder: tactile-learn generate writes those", capsys)
+    assert not Path("film.toml").exists()
