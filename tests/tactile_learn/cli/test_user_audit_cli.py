@@ -147,3 +147,19 @@ def test_a_folder_that_is_not_a_dataset_says_so(workdir: Path, capsys: pytest.Ca
     argv = ["calibrate", "--task", "fsr", "--data", "touches", "--out", "film.toml"]
     fails_cleanly(argv, "no manifest.json (not a dataset folder: tactile-learn generate writes those", capsys)
     assert not Path("film.toml").exists()
+
+
+def test_cards_verify_of_a_corrupt_model_fails_before_generating_anything(workdir: Path) -> None:
+    # every held-out set was generated again (minutes for strips16) before each failed on the checksum
+    import shutil
+
+    from tactile_learn.cards import verify_card
+    from tests.paths import REPO_ROOT
+
+    shutil.copy(REPO_ROOT / "models" / "strips5.json", "s5.json")
+    whole = (REPO_ROOT / "models" / "strips5.onnx").read_bytes()
+    Path("s5.onnx").write_bytes(whole[: len(whole) // 2])
+    report = verify_card("s5.onnx", workdir="work")
+    assert not report["ok"] and report["sets"]
+    assert all("checksum differs from its card's" in s["error"] for s in report["sets"].values())
+    assert not Path("work").exists() or not any(Path("work").iterdir())
