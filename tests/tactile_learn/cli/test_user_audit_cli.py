@@ -163,3 +163,14 @@ def test_cards_verify_of_a_corrupt_model_fails_before_generating_anything(workdi
     assert not report["ok"] and report["sets"]
     assert all("checksum differs from its card's" in s["error"] for s in report["sets"].values())
     assert not Path("work").exists() or not any(Path("work").iterdir())
+
+
+@pytest.mark.parametrize("rtol", ["-1", "nan", "inf", "tight"])
+def test_cards_verify_refuses_a_tolerance_that_is_no_tolerance(
+    rtol: str, workdir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # --rtol -1 ran the whole verification and failed every figure (exit 1, no word on why)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["cards", "verify", "--model", "strips5", "--rtol", rtol])
+    assert exit_info.value.code == 2
+    assert f"--rtol: expected a non-negative number, got '{rtol}'" in capsys.readouterr().err
