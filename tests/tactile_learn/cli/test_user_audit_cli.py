@@ -174,3 +174,13 @@ def test_cards_verify_refuses_a_tolerance_that_is_no_tolerance(
         main(["cards", "verify", "--model", "strips5", "--rtol", rtol])
     assert exit_info.value.code == 2
     assert f"--rtol: expected a non-negative number, got '{rtol}'" in capsys.readouterr().err
+
+
+def test_bench_refuses_an_unknown_method(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # an unknown --method simulated the frames and printed an empty table, exit 0
+    argv = ["bench", "--task", "strips", "--quick", "--n", "20", "--method", "intersectoin"]
+    fails_cleanly(
+        argv, "--method: 'intersectoin' is not a method of strips (available: intersection, projection", capsys
+    )
+    argv = ["bench", "--task", "strips", "--suite", "strips16_ood", "--n", "5", "--method", "nope"]
+    fails_cleanly(argv, "--method: 'nope' is not a method of strips", capsys)
