@@ -324,6 +324,8 @@ class Dataset:
 
     def array(self, key: str, limit: int | None = None) -> np.ndarray:
         """All of ``key`` (or its first ``limit`` samples) in memory, concatenated over shards."""
+        if limit is not None and (not hasattr(limit, "__index__") or limit < 0):  # [:-1] would drop one silently
+            raise ConfigError(f"limit: expected a non-negative number of samples, got {limit!r}")
         parts = []
         remaining = len(self) if limit is None else min(limit, len(self))
         for index in range(len(self.shards)):

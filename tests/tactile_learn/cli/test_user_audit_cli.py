@@ -184,3 +184,42 @@ def test_bench_refuses_an_unknown_method(workdir: Path, capsys: pytest.CaptureFi
     )
     argv = ["bench", "--task", "strips", "--suite", "strips16_ood", "--n", "5", "--method", "nope"]
     fails_cleanly(argv, "--method: 'nope' is not a method of strips", capsys)
+
+
+def test_python_entry_points_refuse_nonsense_arguments(tmp_path: Path) -> None:
+    # each gave an untyped error or a silent wrong answer: AttributeError deep in a method (a scene of
+    # another sensor, a card whose task is not its scene's), ValueError from range() (batch 0), the
+    # first B - 1 samples for limit=-1, onnxruntime's "all cores" for threads=0
+    import json
+    import shutil
+
+    from synth.dataset import Dataset, generate
+    from synth.errors import ConfigError, ModelError
+    from synth.scene import load_scene
+    from tactile_learn.frame_stream import FrameStream
+    from tactile_learn.methods import resolve_method
+    from tactile_learn.runtime import OnnxEstimator
+    from tests.paths import REPO_ROOT
+
+    with pytest.raises(ConfigError, match="scene 'fsr6' is a 'fsr' scene, not a 'strips' one"):
+        resolve_method("strips", "intersection", load_scene("fsr6"))
+    models = REPO_ROOT / "models"
+    for suffix in (".onnx", ".json"):
+        shutil.copy(models / f"strips5{suffix}", tmp_path / f"s5{suffix}")
+    card = json.loads((tmp_path / "s5.json").read_text())
+    card["task"] = "fsr"
+    (tmp_path / "s5.json").write_text(json.dumps(card))
+    with pytest.raises(ModelError, match="the card's task 'fsr' is not its scene's 'strips'"):
+        OnnxEstimator(tmp_path / "s5.onnx").prepare()
+    for threads in (0, -1, 1.5):
+        with pytest.raises(ConfigError, match="threads: expected a positive integer"):
+            OnnxEstimator(models / "strips5.onnx", threads=threads).prepare()  # type: ignore[arg-type]
+    stream = FrameStream(resolve_method("strips", "strips5", load_scene("strips5")))
+    with pytest.raises(ConfigError, match="batch: expected a positive integer, got 0"):
+        stream.run(strips5_frames(3), batch=0)
+    assert stream.run(strips5_frames(3), batch=np.int64(2)).shape == (3, 5, 5)
+    generate(load_scene("strips5"), 6, 1, tmp_path / "d")
+    data = Dataset(tmp_path / "d")
+    with pytest.raises(ConfigError, match="limit: expected a non-negative number of samples, got -1"):
+        data.array("readings", limit=-1)
+    assert len(data.array("readings", limit=np.int64(4))) == 4 and len(data.array("readings", limit=0)) == 0
