@@ -68,7 +68,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", required=True, help="output .npz")
     parser.add_argument("--noise", type=on_off, default=False, help="on|off: noise and ADC (default off)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="noise seed (with --noise on)")
+    parser.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        help="noise seed (with --noise on; default 0: the same noise every run)",
+    )
 
 
 def simulate_arrays(
