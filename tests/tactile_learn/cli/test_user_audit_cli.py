@@ -223,3 +223,14 @@ def test_python_entry_points_refuse_nonsense_arguments(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="limit: expected a non-negative number of samples, got -1"):
         data.array("readings", limit=-1)
     assert len(data.array("readings", limit=np.int64(4))) == 4 and len(data.array("readings", limit=0)) == 0
+
+
+@pytest.mark.parametrize("existing", [".onnx", ".json", ".pt"])
+def test_export_keeps_a_model_already_at_out(existing: str, workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the README's and the help's example (--out models/strips16.onnx) replaced the shipped model,
+    # its card and its weights without a word
+    Path("models").mkdir()
+    Path(f"models/strips16{existing}").write_text("shipped")
+    argv = ["export", "runs/s16", "--out", "models/strips16.onnx"]
+    fails_cleanly(argv, f"would replace strips16{existing}; choose another --out or pass --overwrite", capsys)
+    assert Path(f"models/strips16{existing}").read_text() == "shipped"
