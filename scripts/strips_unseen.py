@@ -26,6 +26,7 @@ from synth.io import atomic_write_json, atomic_write_text
 from synth.suite import Suite, load_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
+from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.suites import suite_eval_data
 from tactile_learn.tasks import get_task
@@ -70,6 +71,12 @@ def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str,
             "r_unflagged": _mean(frame_r[name][~flagged]),
             "r_guarded": guarded["pearson_r_mean"],
             "residual_median": float(np.median(out["residual"])),
+            # how far below the flag the frames it should catch sit: their residual over the threshold
+            "losing_residual_over_threshold_p90": (
+                float(np.percentile(out["residual"][losing], 90) / guard.thresholds_["residual"])
+                if losing.any()
+                else float("nan")
+            ),
         }
     return {"frames": len(truth), "best_classical": best_name, "methods": methods, "models": models}
 
@@ -77,14 +84,19 @@ def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str,
 def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
     """Every family at every seed, and the mean over seeds."""
     estimators = {name: resolve_method("strips", name, suite.base, threads=1) for name in [*CLASSICAL, *models]}
-    checked = {name: CheckedStripModel(estimators[name], fallback="intersection").prepare() for name in models}
+    checked = {}
+    for name in models:
+        model = estimators[name]
+        if not isinstance(model, OnnxEstimator):
+            raise SystemExit(f"{name}: not an ONNX strip model (the flag needs its residual outputs)")
+        checked[name] = CheckedStripModel(model, fallback="intersection").prepare()
     per_seed: dict[str, dict[str, Any]] = {}
     for seed in seeds:
         start = time.perf_counter()
         data = suite_eval_data(suite, n, seed)
         per_seed[str(seed)] = {fam: family_result(frames, estimators, checked) for fam, frames in data.items()}
         log(f"seed {seed}: {len(data)} families x {n} frames in {time.perf_counter() - start:.0f} s")
-    families = {}
+    families: dict[str, dict[str, Any]] = {}
     for fam in suite.families:
         rows = [per_seed[str(s)][fam.name] for s in seeds]
         families[fam.name] = {
@@ -94,7 +106,7 @@ def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any
                 for m in estimators
             },
             "models": {
-                m: {k: float(np.nanmean([row["models"][m][k] for row in rows])) for k in rows[0]["models"][m]}
+                m: {k: _mean(np.array([row["models"][m][k] for row in rows])) for k in rows[0]["models"][m]}
                 for m in models
             },
             "margin_per_seed": {m: [row["models"][m]["margin"] for row in rows] for m in models},
@@ -104,9 +116,7 @@ def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any
             "mean_margin": float(np.mean([f["models"][m]["margin"] for f in families.values()])),
             "families_below_classical": [name for name, f in families.items() if max(f["margin_per_seed"][m]) < 0],
             "families_mixed": [
-                name
-                for name, f in families.items()
-                if min(f["margin_per_seed"][m]) < 0 <= max(f["margin_per_seed"][m])
+                name for name, f in families.items() if min(f["margin_per_seed"][m]) < 0 <= max(f["margin_per_seed"][m])
             ],
         }
         for m in models
@@ -124,8 +134,9 @@ def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any
 
 
 def markdown(result: dict[str, Any], models: list[str]) -> str:
-    """The table: r / NRMSE of every method (mean of the seeds), margin and flag figures per model."""
+    """Two tables: r / NRMSE of every method with each model's margin, then each model's flag figures."""
     methods = [*CLASSICAL, *models]
+    families = result["families"]
     seeds = ", ".join(str(s) for s in result["seeds"])
     lines = [
         f"# `{result['suite']}`: {result['frames_per_family']} frames a family at each of the seeds {seeds}",
@@ -133,46 +144,55 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
         f"`{result['command']}`",
         "",
         "r mean / NRMSE, mean of the seeds (best r of each row in bold); margin: the model's r minus the best "
-        "classical rule's, per seed; flagged: share of frames above the card's thresholds; losing flagged: of the "
-        f"frames the model answers more than {result['loss_margin']} below the best classical rule (per-frame r; "
-        "their share in brackets), the share flagged; guarded: r of the model with the intersection rule on "
-        "flagged frames.",
+        "classical rule's, at each seed.",
         "",
-        "| family | " + " | ".join(methods) + " | "
-        + " | ".join(f"{m}: margin per seed, flagged, losing flagged (losing), guarded" for m in models) + " |",
+        "| family | " + " | ".join(methods) + " | " + " | ".join(f"{m}: margin per seed" for m in models) + " |",
         "|---|" + "---:|" * (len(methods) + len(models)),
     ]
-    for name, fam in result["families"].items():
+    for name, fam in families.items():
         best = max(fam["methods"][m]["r"] for m in methods)
         cells = []
         for m in methods:
             r, e = fam["methods"][m]["r"], fam["methods"][m]["nrmse"]
-            text = f"{r:.3f} / {e:.3f}"
-            cells.append(f"**{text}**" if r == best else text)
-        for m in models:
-            f = fam["models"][m]
-            margins = " ".join(f"{x:+.3f}" for x in fam["margin_per_seed"][m])
-            caught = f"{100 * f['losing_flagged_share']:.0f} %" if np.isfinite(f["losing_flagged_share"]) else "-"
-            cells.append(
-                f"{margins}, {100 * f['flagged_share']:.1f} %, {caught} ({100 * f['losing_share']:.1f} %), "
-                f"{f['r_guarded']:.3f}"
-            )
+            cells.append(f"**{r:.3f} / {e:.3f}**" if r == best else f"{r:.3f} / {e:.3f}")
+        cells += [" ".join(f"{x:+.3f}" for x in fam["margin_per_seed"][m]) for m in models]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    means = [np.mean([f["methods"][m]["r"] for f in result["families"].values()]) for m in methods]
-    lines.append(
-        "| **mean over families** | "
-        + " | ".join(f"{v:.3f}" for v in means)
-        + " | "
-        + " | ".join(f"margin {result['summary'][m]['mean_margin']:+.3f}" for m in models)
-        + " |"
-    )
-    lines.append("")
+    means = [np.mean([f["methods"][m]["r"] for f in families.values()]) for m in methods]
+    margins = [f"{result['summary'][m]['mean_margin']:+.3f}" for m in models]
+    lines += ["| **mean over families** | " + " | ".join([f"{v:.3f}" for v in means] + margins) + " |", ""]
     for m in models:
         s = result["summary"][m]
         lines.append(
-            f"- `{m}` below the best classical rule at every seed: {', '.join(s['families_below_classical']) or 'none'}; "
-            f"at some seeds: {', '.join(s['families_mixed']) or 'none'}."
+            f"- `{m}` below the best classical rule at every seed: {', '.join(s['families_below_classical']) or 'none'}"
+            f"; at some seeds: {', '.join(s['families_mixed']) or 'none'}."
         )
+    lines += [
+        "",
+        "The readings-residual flag (card thresholds), mean of the seeds: flagged, the share of frames above a "
+        f"threshold; losing, the share of frames the model answers more than {result['loss_margin']} below the "
+        "best classical rule (per-frame r), and of those the share flagged and the 90th percentile of their "
+        "residual over the residual threshold (below 1: not flagged); guarded, r with the intersection rule on "
+        "flagged frames.",
+        "",
+        "| family | "
+        + " | ".join(f"{m}: flagged, losing, losing flagged, p90 / threshold, guarded" for m in models)
+        + " |",
+        "|---|" + "---:|" * len(models),
+    ]
+
+    def pct(value: float) -> str:
+        return f"{100 * value:.1f} %" if np.isfinite(value) else "-"
+
+    for name, fam in families.items():
+        cells = []
+        for m in models:
+            f = fam["models"][m]
+            ratio = f["losing_residual_over_threshold_p90"]
+            cells.append(
+                f"{pct(f['flagged_share'])}, {pct(f['losing_share'])}, {pct(f['losing_flagged_share'])}, "
+                f"{ratio:.2f}, {f['r_guarded']:.3f}".replace("nan", "-")
+            )
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
