@@ -9,7 +9,8 @@ answers clearly worse than the best classical rule (per-frame r lower by more th
 :data:`LOSS_MARGIN`) that it flags, and r of the guarded path (the intersection rule on flagged
 frames). Writes the JSON and a Markdown table beside it::
 
-    python scripts/strips_unseen.py --seeds 5151 6262 --n 600 --json results/strips_unseen.json
+    python scripts/strips_unseen.py --seeds 5151 6262 --n 600 --test data/mixed-test \\
+        --json results/strips_unseen.json
 """
 
 from __future__ import annotations
@@ -77,12 +78,18 @@ def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str,
                 if losing.any()
                 else float("nan")
             ),
+            # a residual threshold here would flag half of the losing frames
+            "losing_residual_median": float(np.median(out["residual"][losing])) if losing.any() else float("nan"),
         }
     return {"frames": len(truth), "best_classical": best_name, "methods": methods, "models": models}
 
 
-def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
-    """Every family at every seed, and the mean over seeds."""
+def evaluate(
+    suite: Suite, models: list[str], n: int, seeds: list[int], test: EvalData | None = None, log: Any = print
+) -> dict[str, Any]:
+    """Every family at every seed, and the mean over seeds; with ``test`` (frames of the models'
+    training distribution) also the share of those a residual threshold low enough to flag half of
+    a family's losing frames would flag: the price of catching that family with the residual."""
     estimators = {name: resolve_method("strips", name, suite.base, threads=1) for name in [*CLASSICAL, *models]}
     checked = {}
     for name in models:
@@ -111,6 +118,14 @@ def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any
             },
             "margin_per_seed": {m: [row["models"][m]["margin"] for row in rows] for m in models},
         }
+    if test is not None:
+        for m in models:
+            in_family = checked[m].check(test.inputs)["residual"]
+            for fam_result in families.values():
+                limit = fam_result["models"][m]["losing_residual_median"]
+                fam_result["models"][m]["test_flagged_at_losing_median"] = (
+                    float(np.mean(in_family >= limit)) if np.isfinite(limit) else float("nan")
+                )
     summary = {
         m: {
             "mean_margin": float(np.mean([f["models"][m]["margin"] for f in families.values()])),
@@ -127,6 +142,7 @@ def evaluate(suite: Suite, models: list[str], n: int, seeds: list[int], log: Any
         "frames_per_family": n,
         "loss_margin": LOSS_MARGIN,
         "thresholds": {m: checked[m].thresholds_ for m in models},
+        "test": None if test is None else test.source,
         "summary": summary,
         "families": families,
         "per_seed": per_seed,
@@ -172,10 +188,14 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
         f"threshold; losing, the share of frames the model answers more than {result['loss_margin']} below the "
         "best classical rule (per-frame r), and of those the share flagged and the 90th percentile of their "
         "residual over the residual threshold (below 1: not flagged); guarded, r with the intersection rule on "
-        "flagged frames.",
+        "flagged frames; half caught costs: the share of the training distribution's test frames "
+        f"({result.get('test') or 'not measured'}) that a residual threshold low enough to flag half of the losing "
+        "frames would flag too.",
         "",
         "| family | "
-        + " | ".join(f"{m}: flagged, losing, losing flagged, p90 / threshold, guarded" for m in models)
+        + " | ".join(
+            f"{m}: flagged, losing, losing flagged, p90 / threshold, guarded, half caught costs" for m in models
+        )
         + " |",
         "|---|" + "---:|" * len(models),
     ]
@@ -188,9 +208,10 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
         for m in models:
             f = fam["models"][m]
             ratio = f["losing_residual_over_threshold_p90"]
+            cost = pct(f.get("test_flagged_at_losing_median", float("nan")))
             cells.append(
                 f"{pct(f['flagged_share'])}, {pct(f['losing_share'])}, {pct(f['losing_flagged_share'])}, "
-                f"{ratio:.2f}, {f['r_guarded']:.3f}".replace("nan", "-")
+                f"{ratio:.2f}, {f['r_guarded']:.3f}, {cost}".replace("nan", "-")
             )
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
@@ -202,9 +223,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--suite", default="strips16_unseen")
     parser.add_argument("--seeds", type=int, nargs="+", default=[5151, 6262])
     parser.add_argument("--n", type=int, default=600, help="frames per family and seed")
+    parser.add_argument("--test", help="frames of the models' training distribution (e.g. data/mixed-test)")
     parser.add_argument("--json", help="write the result here, and the Markdown table beside it (.md)")
     args = parser.parse_args(argv)
-    result = evaluate(load_suite(args.suite), args.models, args.n, args.seeds)
+    test = get_task("strips").load_eval_data(args.test) if args.test else None
+    result = evaluate(load_suite(args.suite), args.models, args.n, args.seeds, test)
     result["command"] = "python scripts/strips_unseen.py " + " ".join(argv if argv is not None else sys.argv[1:])
     table = markdown(result, args.models)
     print(table)

@@ -30,10 +30,12 @@ def _two_families():  # type: ignore[no-untyped-def]
 
 def test_margins_losses_and_flags_follow_their_definitions() -> None:
     suite = _two_families()
-    result = strips_unseen.evaluate(suite, [MODEL], n=12, seeds=[3, 4], log=lambda _: None)
+    in_family = suite_eval_data(suite, 20, 99)["bottle_cap"]  # stands for the training distribution
+    result = strips_unseen.evaluate(suite, [MODEL], n=12, seeds=[3, 4], test=in_family, log=lambda _: None)
     seed3 = result["per_seed"]["3"]
     frames = suite_eval_data(suite, 12, 3)
     guard = CheckedStripModel(MODEL).prepare()
+    in_family_residual = guard.check(in_family.inputs)["residual"]
     for name, data in frames.items():
         truth = data.truth["pressure"]
         r = {
@@ -53,6 +55,15 @@ def test_margins_losses_and_flags_follow_their_definitions() -> None:
     per_seed = [result["per_seed"][s]["bottle_cap"]["models"][MODEL]["margin"] for s in ("3", "4")]
     assert fam["margin_per_seed"][MODEL] == per_seed
     assert np.isclose(fam["models"][MODEL]["margin"], np.mean(per_seed))
+    checked_costs = 0
+    for name, fam in result["families"].items():
+        model = fam["models"][MODEL]
+        medians = [result["per_seed"][s][name]["models"][MODEL]["losing_residual_median"] for s in ("3", "4")]
+        if np.isfinite(model["losing_residual_median"]):
+            limit = np.nanmean(medians)
+            assert np.isclose(model["test_flagged_at_losing_median"], np.mean(in_family_residual >= limit))
+            checked_costs += 1
+    assert checked_costs  # five fingertips: the small model loses some of them
     table = strips_unseen.markdown({**result, "command": "x"}, [MODEL])
     assert table.count("| bottle_cap |") == 2 and "| five_fingertips |" in table
 
