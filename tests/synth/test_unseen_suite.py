@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from synth.scene import load_scene
-from synth.sensors.strips.config import StimulusKind, StripStimuli, allowed_intervals
+from synth.sensors.strips.config import Holdout, StimulusKind, StripStimuli, allowed_intervals
 from synth.suite import load_suite, suite_frames
 
 #: the drawn parameters that shape each kind (synth.stimuli's docstring); the others are ignored
@@ -24,16 +24,15 @@ SHAPING = {
 }
 
 
-def _overlaps(lo: float, hi: float, reference: StimulusKind, name: str) -> bool:
-    """Can ``reference`` draw a value of ``name`` in [lo, hi]? (its range minus its holdouts)"""
-    ref_lo, ref_hi = getattr(reference, name)
-    pieces = allowed_intervals(ref_lo, ref_hi, reference.holdouts(name))
-    return any(max(lo, a) <= min(hi, b) for a, b in pieces)
-
-
-def _range(spec: StimulusKind, name: str) -> tuple[float, float]:
+def _pieces(spec: StimulusKind, name: str) -> list[tuple[float, float]]:
+    """The values of ``name`` that ``spec`` draws: its range minus its holdouts."""
     lo, hi = getattr(spec, name)
-    return float(lo), float(hi)
+    return allowed_intervals(float(lo), float(hi), spec.holdouts(name))
+
+
+def _overlaps(spec: StimulusKind, reference: StimulusKind, name: str) -> bool:
+    """Can ``reference`` draw a value of ``name`` that ``spec`` draws?"""
+    return any(max(a, c) <= min(b, d) for a, b in _pieces(spec, name) for c, d in _pieces(reference, name))
 
 
 def novelty(family: StripStimuli, reference: StripStimuli) -> list[str]:
@@ -48,7 +47,7 @@ def novelty(family: StripStimuli, reference: StripStimuli) -> list[str]:
             continue
         misses = []
         for ref in same:
-            missed = [p for p in SHAPING[spec.kind] if not _overlaps(*_range(spec, p), ref, p)]
+            missed = [p for p in SHAPING[spec.kind] if not _overlaps(spec, ref, p)]
             if not missed:
                 return reasons  # this kind's contacts can be drawn from ``ref``
             misses.append(missed)
@@ -87,6 +86,17 @@ def test_the_novelty_check_sees_a_familiar_family() -> None:
     # a block at 30 degrees is held out of training's flat blocks, but the tilted blocks draw it
     block = StimulusKind("block", force_n=(1.0, 6.0), width_mm=(4.0, 6.0), length_mm=(10.0, 12.0), angle_deg=(30, 30))
     assert novelty(StripStimuli(count=(1, 1), kinds=(block,)), training) == []
+
+    # a family's own holdouts count: only steep tilts, at lengths the tilted blocks skip
+    def steep(holdout: tuple[Holdout, ...] = ()) -> StripStimuli:
+        kind = StimulusKind(
+            "block", force_n=(1.0, 6.0), width_mm=(8.0, 10.0), length_mm=(14.0, 16.0), tilt=(-1.0, 1.0), holdout=holdout
+        )
+        return StripStimuli(count=(1, 1), kinds=(kind,))
+
+    assert novelty(steep(), training) == []
+    tilted = steep((Holdout("tilt", -0.7, 0.7),))
+    assert novelty(tilted, training) == ["block: tilt; length_mm"]
 
 
 def test_every_family_generates_frames_within_the_sensors_range() -> None:
