@@ -224,8 +224,9 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{self.path}: the ONNX graph's tactile-learn metadata is corrupt") from None
         if embedded.get("scene_digest") != card["scene_digest"] or embedded.get("task") != card["task"]:
             raise ModelError(
-                f"{self.path}: the model was built for scene {embedded.get('scene_digest')}, "
-                f"its card says {card['scene_digest']}"
+                f"{self.path}: the ONNX graph was built for a {embedded.get('task')} scene of digest "
+                f"{embedded.get('scene_digest')}, its card says {card['task']} {card['scene_digest']}: the card "
+                "belongs to another model or was edited"
             )
         inputs = session.get_inputs()
         outputs = session.get_outputs()

@@ -234,3 +234,21 @@ def test_export_keeps_a_model_already_at_out(existing: str, workdir: Path, capsy
     argv = ["export", "runs/s16", "--out", "models/strips16.onnx"]
     fails_cleanly(argv, f"would replace strips16{existing}; choose another --out or pass --overwrite", capsys)
     assert Path(f"models/strips16{existing}").read_text() == "shipped"
+
+
+def test_a_card_of_another_model_with_a_matching_checksum_is_named(tmp_path: Path) -> None:
+    # the graph's own metadata is the last word: the message said only "built for scene X, its card says Y"
+    import hashlib
+    import json
+    import shutil
+
+    from synth.errors import ModelError
+    from tactile_learn.runtime import OnnxEstimator
+    from tests.paths import REPO_ROOT
+
+    shutil.copy(REPO_ROOT / "models" / "strips16.onnx", tmp_path / "m.onnx")
+    card = json.loads((REPO_ROOT / "models" / "strips5.json").read_text())
+    card["model_sha256"] = hashlib.sha256((tmp_path / "m.onnx").read_bytes()).hexdigest()
+    (tmp_path / "m.json").write_text(json.dumps(card))
+    with pytest.raises(ModelError, match="the card belongs to another model or was edited"):
+        OnnxEstimator(tmp_path / "m.onnx").prepare()
