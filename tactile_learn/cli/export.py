@@ -32,12 +32,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from tactile_learn.export import export
-
     out = Path(args.out)
     existing = [p.name for p in (out, out.with_suffix(".json"), out.with_suffix(".pt")) if p.exists()]
     if existing and not args.overwrite:  # following an example must not replace a shipped model
         raise ConfigError(f"--out: {out} would replace {', '.join(existing)}; choose another --out or pass --overwrite")
+    from tactile_learn.export import export  # torch: imported only once the export will run
+
     card = export(args.run, args.out, name=args.name, test=args.test, calibration=args.calibration)
     summary = {
         "model": args.out,
