@@ -50,6 +50,12 @@ one shared contact (``shared_contact``).
 The report gives the fit's residual in those units, every parameter with its bounds, the ones at a
 bound (with the likely reason), and the ones the data do not identify (posterior s.d. above a factor
 of 2, or a correlation above 0.99 with another).
+
+This module drives the fit (:func:`calibrate_channels`); the pieces: the touches on the fitting grid
+and the noise levels (:mod:`.thermal_touches`), the parameters and the fit's settings such as
+``PRECURSOR_S`` or ``EVENT_FACTOR_MAX`` (:mod:`.thermal_parameters`), the least-squares problem
+(:mod:`.thermal_problem`), the report (:mod:`.thermal_report`), the contact events' placement
+(:mod:`.thermal_events`) and the residual's kinks (:mod:`.thermal_kinks`).
 """
 
 from __future__ import annotations

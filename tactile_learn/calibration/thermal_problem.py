@@ -92,7 +92,7 @@ class CalibrationProblem:
         )
         if "contact_precursor" in self.nuisance and self.passive:
             self.nuisance_columns.append("passive_precursor_k")
-        #: the joint refinement fits in noise units (see NOISE_WEIGHTED)
+        #: the joint refinement fits in noise units (see thermal_calibration.NOISE_WEIGHTED)
         self.noise_weighted = noise is not None
         self.heater_off = heater_off
         self.length = max(len(t.t) for t in touches)
@@ -127,9 +127,10 @@ class CalibrationProblem:
 
     def _noise_weights(self, noise: dict[str, dict[str, float]] | None) -> np.ndarray:
         """1 / sigma(t) of every sample, ``sigma^2 = sigma_w^2 + (sigma_t dx/dt)^2`` with the data's
-        own slope (the noise model of :func:`noise_levels`, the unit the report's residual is given
-        in: a fit in that unit is the maximum-likelihood one), normalised to a mean square of 1 over
-        the samples (the residual rows keep their scale against the priors); 1 without ``noise``."""
+        own slope (the noise model of :func:`~.thermal_touches.noise_levels`, the unit the report's
+        residual is given in: a fit in that unit is the maximum-likelihood one), normalised to a mean
+        square of 1 over the samples (the residual rows keep their scale against the priors); 1
+        without ``noise``."""
         n_ch = 2 if self.passive else 1
         weight = np.ones((n_ch, self.n, self.length))
         if noise is None:
