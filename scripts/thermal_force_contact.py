@@ -60,8 +60,8 @@ class ForceContact(CalibrationProblem):
         self.shared.append(P("contact.force_exponent", "", 0.0, 4.0, 1.0, False, "G ~ (F / F_plateau)^k"))
         self.shared.append(P("contact.force_shift_s", "s", -0.5, 1.0, 0.1, False, "thermal contact leads the force"))
 
-    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        cols, power = super().design(free)
+    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        cols, power, extra = super().design(free)  # extra: the opt-in per-touch columns, passed on
         values, _, _ = self.unpack(free)
         k, shift = values["contact.force_exponent"], values["contact.force_shift_s"]
         e, alpha = self.class_e[self.label], self.class_alpha[self.label]
@@ -83,7 +83,7 @@ class ForceContact(CalibrationProblem):
             cols[c, :, :, 0] += obj - old
             cols[c, :, :, 1] += lead_lag * (obj - old)
             cols[c, :, :, 2] = -obj
-        return cols, power
+        return cols, power, extra
 
 
 def fit(problem: CalibrationProblem, starts: int = 6, seed: int = 0) -> dict[str, Any]:
