@@ -15,7 +15,7 @@ data() {  # scene, n, seed, folder
 }
 
 ship() {  # run, model name, test folder
-  $TL export "runs/$1" --out "models/$2.onnx" --test "data/$3"
+  $TL export "runs/$1" --out "models/$2.onnx" --test "data/$3" --overwrite
 }
 
 strips16() {  # the general model (the default): the whole shape library, 1-4 contacts, small network
@@ -130,7 +130,7 @@ strips16() {  # the general model (the default): the whole shape library, 1-4 co
   $PY scripts/average_weights.py runs/strips16_soup4 runs/strips16_gpu4 --last-epoch --weight 0.85 \
     --out runs/strips16_gpu_final
   # flag thresholds calibrated on the general distribution, not on the last cycle's
-  $TL export runs/strips16_gpu_final --out models/strips16.onnx --test data/mixed-test --calibration data/mixed-val
+  $TL export runs/strips16_gpu_final --out models/strips16.onnx --test data/mixed-test --calibration data/mixed-val --overwrite
   data strips16 4000 3 strips16-test; data strips16_twins 4000 3 strips16_twins-test
   $TL cards add --model models/strips16.onnx --name two_spheres --data data/strips16-test
   $TL cards add --model models/strips16.onnx --name strips16_twins --data data/strips16_twins-test
@@ -150,7 +150,7 @@ strips16_small() {  # the fast general model (issue 15): strips16 shrunk to size
   # then the mixture alone at a lower rate: 7 -> 3 families below the classical rules, two spheres 0.940 -> 0.921
   $TL train --task strips --data data/mixed-train4 data/single-train --val data/mixed-val --out runs/strips16_small2 \
     --size tiny --epochs 3 --max-batches 800 --lr 7e-4 --threads 1 --val-limit 2000 --init runs/strips16_small --quiet
-  $TL export runs/strips16_small2 --out models/strips16_small.onnx --test data/mixed-test --calibration data/mixed-val
+  $TL export runs/strips16_small2 --out models/strips16_small.onnx --test data/mixed-test --calibration data/mixed-val --overwrite
   data strips16 4000 3 strips16-test; data strips16_twins 4000 3 strips16_twins-test
   $TL cards add --model models/strips16_small.onnx --name two_spheres --data data/strips16-test
   $TL cards add --model models/strips16_small.onnx --name strips16_twins --data data/strips16_twins-test

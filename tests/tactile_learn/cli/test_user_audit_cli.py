@@ -109,6 +109,15 @@ def test_generate_refuses_zero_samples(workdir: Path, capsys: pytest.CaptureFixt
     assert not Path("d").exists()
 
 
+def test_train_refuses_zero_epochs(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --epochs 0 trained the task's default 12 epochs while the help called it "maximum epochs"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "--task", "strips", "--data", "d", "--val", "v", "--out", "r", "--epochs", "0"])
+    assert exit_info.value.code == 2
+    assert "--epochs: expected a positive integer" in capsys.readouterr().err
+    assert not Path("r").exists()
+
+
 def test_simulate_help_gives_each_lattice_as_the_scene_has_it() -> None:
     # the help showed no capacitive stimulus: a user had to find geometry.lattice_shape in the code
     from synth.scene import load_scene
