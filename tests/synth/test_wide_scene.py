@@ -11,20 +11,11 @@ import pytest
 
 from synth.dataset import simulate_shard
 from synth.scene import Scene, load_scene
-from synth.sensors.strips.config import DRAWN_PARAMS, StimulusKind, StripStimuli, allowed_intervals
+from synth.sensors.strips.config import StimulusKind, StripStimuli, allowed_intervals
 from synth.sensors.strips.stimuli import ContactGenerator
-from synth.suite import available_suites, load_suite
+from synth.suite import load_suite
+from tests.synth.test_unseen_suite import SHAPING  # the parameters that shape a contact of each kind
 
-#: the parameters that shape a contact of each kind (the others are drawn but unused)
-SHAPING = {
-    "sphere": ("force_n", "radius_mm"),
-    "punch": ("force_n", "radius_mm"),
-    "block": ("force_n", "width_mm", "length_mm", "angle_deg", "tilt"),
-    "edge": ("force_n", "radius_mm", "length_mm", "angle_deg"),
-    "ring": ("force_n", "radius_mm", "hole_fraction"),
-    "terminal": ("force_n", "radius_mm", "hole_fraction", "width_mm", "length_mm", "angle_deg"),
-    "blob": ("force_n", "radius_mm", "width_mm"),
-}
 #: a family's fixed value (a washer's 5 mm) stands for this much around it: a scene that draws 4.9 mm
 #: washers has not held 5 mm ones out
 NEAR = {"force_n": 0.1, "angle_deg": 2.0, "hole_fraction": 0.02, "tilt": 0.05}
@@ -176,20 +167,12 @@ def test_unseen_shapes_are_never_drawn(wide: Scene) -> None:
         assert not inside.any(), (family, value[inside][:5])
 
 
-def test_unseen_suite_stays_held_out_where_shipped(wide: Scene) -> None:
-    """Every family of the unseen suite is held out at the suite's own parameters (checked from its
-    file once it is in synth/suites: the table above is written from it)."""
-    if "strips16_unseen" not in available_suites():
-        families = {name: _family(kind, name_, lo, hi) for name, (kind, name_, lo, hi) in UNSEEN.items()}
-    else:
-        families = {f.name: f.scene.sensor.stimuli for f in load_suite("strips16_unseen").families}
-    five = StripStimuli(count=(5, 5), kinds=(StimulusKind(kind="sphere", force_n=(0.5, 4.0), radius_mm=(6.0, 10.0)),))
-    families.setdefault("five_fingertips", five)
-    for name, family in families.items():
-        assert held_out(wide.sensor.stimuli, family), name
-
-
-def _family(kind: str, name: str, lo: float, hi: float) -> StripStimuli:
-    assert name in DRAWN_PARAMS
-    base = StimulusKind(kind=kind)  # type: ignore[arg-type]
-    return StripStimuli(count=(1, 1), kinds=(dataclasses.replace(base, **{name: (lo, hi)}),))  # type: ignore[arg-type]
+def test_unseen_suite_stays_held_out(wide: Scene) -> None:
+    """Every family of the unseen suite is held out at the suite's own parameters (five fingertips
+    by their count)."""
+    suite = load_suite("strips16_unseen")
+    assert set(UNSEEN) | {"five_fingertips"} == set(suite.names)
+    for family in suite.families:
+        assert held_out(wide.sensor.stimuli, family.scene.sensor.stimuli), family.name
+    five = suite.family("five_fingertips").scene.sensor.stimuli
+    assert not held_out(dataclasses.replace(wide.sensor.stimuli, count_weights=()), five)
