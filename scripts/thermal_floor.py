@@ -39,7 +39,10 @@ from scipy import optimize
 from synth.io import atomic_write_json
 from synth.materials import get_material
 from tactile_learn.calibration import thermal_calibration as tcal
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_report import residual_summary
 from tactile_learn.calibration.thermal_scene import _classes, _onset
+from tactile_learn.calibration.thermal_touches import QUIET_BEFORE_S
 from tactile_learn.thermal_recordings import Touch, read_recordings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -86,7 +89,7 @@ def per_touch_fit(
     (mK and sigma per channel) and the fitted values. Starts: the default, each of ``start_values``
     (parameter values by name), then jittered around them in turn. ``weighted``: every sample in units
     of its noise s.d. (the maximum-likelihood fit in the report's unit), else all alike in K."""
-    problem = tcal._Problem([touch], materials, heater_off=True, noise=noise if weighted else None)
+    problem = CalibrationProblem([touch], materials, heater_off=True, noise=noise if weighted else None)
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
     bases = [problem.start()]
@@ -104,7 +107,7 @@ def per_touch_fit(
     final = run(best.x, 300)
     res, _, _ = problem.solve(final.x)
     values, _, _ = problem.unpack(final.x)
-    summary = tcal._residual_summary(problem, res, noise, [{}], "own")
+    summary = residual_summary(problem, res, noise, [{}], "own")
     return res[:, 0], summary, values
 
 
@@ -221,7 +224,7 @@ def quiet_noise(touches: list[Touch], onsets: list[float], conditions: list[str]
     sources: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
     for touch, onset, cond in zip(touches, onsets, conditions, strict=True):
         t = touch.time_s
-        pre = (t > t[0] + 0.05) & (t < onset - tcal.QUIET_BEFORE_S)
+        pre = (t > t[0] + 0.05) & (t < onset - QUIET_BEFORE_S)
         during = (t > onset + 1.0) & (t < onset + 6.0)
         for channel in ("heated", "passive"):
             if pre.sum() >= 60:

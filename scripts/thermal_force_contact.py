@@ -4,7 +4,7 @@ the recorder's noise white? (issue 11's calibration floor: residual <= 3 noise s
     python scripts/thermal_force_contact.py --label R_1 --json results/thermal_force_contact.json
 
 1. The labelled session's touches are fitted twice with the calibration's model and multi-start
-   solver (``tactile_learn.calibration.thermal_calibration``): as calibrated (a contact that builds up over a
+   solver (``tactile_learn.calibration.thermal_problem``): as calibrated (a contact that builds up over a
    ramp, then holds), and with a contact that follows the recorded force: the build-up is the sum
    of step contacts weighted by the increments of ``w(t) = (F(t + shift) / F_plateau)^k`` (from the
    first touch; ``k`` and ``shift`` fitted, the ramp dropped), so the conductance rises and falls
@@ -36,7 +36,9 @@ from thermal_robot_protocol import robot_data, split
 from synth.io import atomic_write_json, json_dumps
 from synth.materials import get_material
 from synth.sensors.thermal.dynamics import channel_terms
-from tactile_learn.calibration import thermal_calibration as calibration
+from tactile_learn.calibration.thermal_parameters import Parameter
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import FIT_HZ, noise_levels, prepare_touches
 from tactile_learn.thermal_adapt import _classes, _onset
 from tactile_learn.thermal_recordings import Touch, press_profile, read_recordings
 from tactile_learn.timing import timed
@@ -45,27 +47,27 @@ from tactile_learn.timing import timed
 SUB = 5
 
 
-class ForceContact(calibration._Problem):
+class ForceContact(CalibrationProblem):
     """The calibration's problem with the contact's build-up read from the force (see the module)."""
 
     def __init__(self, touches: list[Any], classes: list[Any], forces: list[tuple[np.ndarray, np.ndarray]]) -> None:
         super().__init__(touches, classes, True)
         self.forces = forces
-        P = calibration.Parameter
+        P = Parameter
         # the ramp is replaced by the force: pinned at its lower bound (the design ignores it)
         ramp = P("contact.ramp_s", "s", 0.02, 0.0201, 0.02, True, "unused: the force times the build-up")
         self.shared = [ramp if p.name == "contact.ramp_s" else p for p in self.shared]
         self.shared.append(P("contact.force_exponent", "", 0.0, 4.0, 1.0, False, "G ~ (F / F_plateau)^k"))
         self.shared.append(P("contact.force_shift_s", "s", -0.5, 1.0, 0.1, False, "thermal contact leads the force"))
 
-    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        cols, power = super().design(free)
+    def design(self, free: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        cols, power, extra = super().design(free)  # extra: the opt-in per-touch columns, passed on
         values, _, _ = self.unpack(free)
         k, shift = values["contact.force_exponent"], values["contact.force_shift_s"]
         e, alpha = self.class_e[self.label], self.class_alpha[self.label]
         spreading = 4.0 * e * np.sqrt(alpha) / (math.pi * values["contact.radius_mm"] * 1e-3)
         n_fine = self.length * SUB
-        tau = np.arange(n_fine) / (calibration.FIT_HZ * SUB)
+        tau = np.arange(n_fine) / (FIT_HZ * SUB)
         weight = np.zeros((self.n, n_fine))
         for i, tc in enumerate(self.touches):
             press = np.interp(tc.t[0] + tau + shift, *self.forces[i])
@@ -81,10 +83,10 @@ class ForceContact(calibration._Problem):
             cols[c, :, :, 0] += obj - old
             cols[c, :, :, 1] += lead_lag * (obj - old)
             cols[c, :, :, 2] = -obj
-        return cols, power
+        return cols, power, extra
 
 
-def fit(problem: calibration._Problem, starts: int = 6, seed: int = 0) -> dict[str, Any]:
+def fit(problem: CalibrationProblem, starts: int = 6, seed: int = 0) -> dict[str, Any]:
     """The calibration's multi-start (short runs from jittered starts, the best to convergence)."""
     lo, hi = problem.bounds()
     rng = np.random.default_rng(seed)
@@ -148,18 +150,18 @@ def main(argv: list[str] | None = None) -> int:
         if profile is None:
             raise SystemExit(f"{t.file}: no press in its force column")
         forces.append((t.time_s, profile))
-    fit_touches = calibration.prepare_touches(series)
+    fit_touches = prepare_touches(series)
     materials = [[get_material(m) for m in mats] for _, mats in classes]
     result: dict[str, Any] = {"labelled": args.label}
     result["noise"] = {
         "calibration_estimate": {
-            "heated": calibration.noise_levels(noise_h),
-            "passive": calibration.noise_levels(noise_p),
+            "heated": noise_levels(noise_h),
+            "passive": noise_levels(noise_p),
         },
         "pre_contact": whiteness(touches),
     }
     for name, problem in (
-        ("ramp_contact", calibration._Problem(fit_touches, materials, True)),
+        ("ramp_contact", CalibrationProblem(fit_touches, materials, True)),
         ("force_contact", ForceContact(fit_touches, materials, forces)),
     ):
         result[name], seconds = timed(partial(fit, problem))

@@ -7,7 +7,7 @@ object's flux; the object's flux and the heater's steps; the contact's precursor
 through the closing air gap; contact events, steps of the contact conductance at the residual's
 kinks; and the joint refinement in noise units, ``weighted``), and the
 residual in mK and in noise sigma (both noise definitions: see
-``tactile_learn.calibration.thermal_calibration._residual_summary``), with one contact for every
+``tactile_learn.calibration.thermal_report.residual_summary``), with one contact for every
 touch and with each touch's own contact, overall, per channel and per condition of
 ``touches.csv`` (M metal, W wood, CW cooled wood), and the calibration's wall time. The
 residual's kinks (slope changes at a few instants; see ``tactile_learn.calibration.thermal_kinks``)

@@ -21,6 +21,8 @@ import math
 import os
 import platform
 import sys
+import zipfile
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
@@ -142,6 +144,8 @@ def _owned_files(folder: Path) -> list[Path]:
 
 
 def _prepare_folder(folder: Path, request: dict[str, Any], overwrite: bool) -> None:
+    if folder.exists() and not folder.is_dir():
+        raise DataError(f"{folder} is a file, not a dataset folder; choose another --out")
     folder.mkdir(parents=True, exist_ok=True)
     existing = folder / GENERATION
     if existing.exists():
@@ -264,8 +268,11 @@ class Dataset:
         if not self.path.is_dir():
             raise DataError(f"{self.path}: no such dataset folder")
         if not manifest_path.is_file():
-            hint = " (generation was interrupted: rerun the same generate command to finish it)"
-            raise DataError(f"{self.path}: no manifest.json{hint if (self.path / GENERATION).exists() else ''}")
+            if (self.path / GENERATION).exists():
+                hint = " (generation was interrupted: rerun the same generate command to finish it)"
+            else:  # e.g. a recordings folder where a dataset or an .npz is read
+                hint = " (not a dataset folder: tactile-learn generate writes those; or give an .npz file)"
+            raise DataError(f"{self.path}: no manifest.json{hint}")
         try:
             self.manifest: dict[str, Any] = json.loads(manifest_path.read_text())
         except ValueError as exc:
@@ -317,6 +324,8 @@ class Dataset:
 
     def array(self, key: str, limit: int | None = None) -> np.ndarray:
         """All of ``key`` (or its first ``limit`` samples) in memory, concatenated over shards."""
+        if limit is not None and (not hasattr(limit, "__index__") or limit < 0):  # [:-1] would drop one silently
+            raise ConfigError(f"limit: expected a non-negative number of samples, got {limit!r}")
         parts = []
         remaining = len(self) if limit is None else min(limit, len(self))
         for index in range(len(self.shards)):
@@ -360,6 +369,11 @@ class Dataset:
                 yield {k: np.asarray(m[sel]) for k, m in maps.items()}
 
 
+#: first bytes of an .npz (a zip archive) and of a single .npy array
+ZIP_MAGIC = b"PK"
+NPY_MAGIC = b"\x93NUMPY"
+
+
 def load_arrays(path: str | Path, keys: Sequence[str] | None = None) -> dict[str, np.ndarray]:
     """Arrays from a generated dataset folder or a ``.npz`` file (e.g. a user's own recordings)."""
     source = Path(path)
@@ -367,6 +381,7 @@ def load_arrays(path: str | Path, keys: Sequence[str] | None = None) -> dict[str
         return Dataset(source).arrays(keys)
     if not source.is_file():
         raise DataError(f"{source}: no such file or dataset folder")
+    _check_npz_magic(source)
     try:
         with np.load(source, allow_pickle=False) as data:
             wanted = list(data.files) if keys is None else list(keys)
@@ -376,8 +391,25 @@ def load_arrays(path: str | Path, keys: Sequence[str] | None = None) -> dict[str
             return {k: np.asarray(data[k]) for k in wanted}
     except DataError:
         raise
-    except (OSError, ValueError, EOFError) as exc:
-        raise DataError(f"{source}: not a readable .npz file ({exc})") from None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        # a truncated or damaged archive fails in zipfile (BadZipFile, a CRC or zlib error) or in numpy
+        raise DataError(f"{source}: not a readable .npz file: truncated or corrupt ({exc})") from None
+
+
+def _check_npz_magic(source: Path) -> None:
+    """Refuse what is not an .npz archive by its first bytes, before numpy guesses (numpy reads any
+    other file as a pickle and says so, which misleads: the user meant arrays)."""
+    with source.open("rb") as file:
+        head = file.read(len(NPY_MAGIC))
+    if not head:
+        raise DataError(f"{source}: not a readable .npz file: it is empty (expected named arrays: numpy.savez)")
+    if head.startswith(NPY_MAGIC):
+        raise DataError(
+            f"{source}: not a readable .npz file: it is a single .npy array; save the arrays by name "
+            "(numpy.savez(path, readings=...))"
+        )
+    if not head.startswith(ZIP_MAGIC):
+        raise DataError(f"{source}: not a readable .npz file: not a zip archive of named arrays (numpy.savez)")
 
 
 def default_workers() -> int:

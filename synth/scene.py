@@ -36,7 +36,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised on Python 3.10 only
     import tomli as tomllib
 
-__all__ = ["Scene", "available_scenes", "load_scene", "parse_scene", "scene_digest"]
+__all__ = ["Scene", "available_scenes", "load_scene", "parse_scene", "scene_differences", "scene_digest"]
 
 _TOP_KEYS = ("name", "task", "description", "outputs", "noise")
 
@@ -96,6 +96,8 @@ def parse_scene(data: dict[str, Any], source: str = "<scene>") -> Scene:
     """Validate a scene given as a dict (the parsed TOML). Errors name ``source`` and the key."""
     try:
         task = data.get("task")
+        if task is None:
+            raise ConfigError(f"task: missing (a scene names its sensor: task = one of {', '.join(TASKS)})")
         if task not in TASKS:
             raise ConfigError(f"task: {task!r} is not one of {', '.join(TASKS)}")
         unknown = sorted(set(data) - set(_TOP_KEYS) - {task})
@@ -169,3 +171,23 @@ def scene_digest(scene: Scene) -> str:
     data.pop("description")
     blob = json.dumps(data, sort_keys=True, separators=(",", ":")).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
+
+
+def _flat(data: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(data, dict):
+        out: dict[str, Any] = {}
+        for key, value in data.items():
+            out.update(_flat(value, f"{prefix}{key}."))
+        return out
+    return {prefix[:-1]: data}
+
+
+def scene_differences(a: Scene, b: Scene, limit: int = 5) -> list[str]:
+    """The physics keys where two scenes differ (what :func:`scene_digest` compares), as
+    ``"key: A vs B"`` lines, at most ``limit`` of them (then how many more), for error messages."""
+    flat_a, flat_b = (_flat({k: v for k, v in s.to_dict().items() if k not in ("name", "description")}) for s in (a, b))
+    keys = sorted(k for k in flat_a.keys() | flat_b.keys() if flat_a.get(k, "(absent)") != flat_b.get(k, "(absent)"))
+    lines = [f"{k}: {flat_a.get(k, '(absent)')!r} vs {flat_b.get(k, '(absent)')!r}" for k in keys[:limit]]
+    if len(keys) > limit:
+        lines.append(f"... and {len(keys) - limit} more")
+    return lines

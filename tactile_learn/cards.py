@@ -29,7 +29,7 @@ from synth.io import atomic_write_json, json_ready
 from synth.scene import load_scene
 from tactile_learn.methods import resolve_method
 from tactile_learn.provenance import command_line, dataset_record, portable_path
-from tactile_learn.runtime import card_path, read_card
+from tactile_learn.runtime import OnnxEstimator, card_path, read_card
 from tactile_learn.tasks import get_task
 
 __all__ = ["RTOL", "add_metrics", "compare_values", "dataset_entry", "heldout_sets", "suite_entry", "verify_card"]
@@ -208,6 +208,11 @@ def verify_card(
     unknown = sorted(set(names or ()) - set(entries))
     if unknown:
         raise ModelError(f"{path}: the card has no held-out metrics {', '.join(unknown)} (it has {', '.join(entries)})")
+    try:  # a corrupt or mismatched model fails every set: found once, before any set is generated
+        OnnxEstimator(path, card=card).prepare()
+        model_error = None
+    except TactileError as exc:
+        model_error = str(exc)
     with tempfile.TemporaryDirectory(prefix="tl-cards-") as tmp:
         folder = Path(workdir) if workdir is not None else Path(tmp)
         sets: dict[str, Any] = {}
@@ -217,6 +222,8 @@ def verify_card(
             if progress:
                 progress(f"{path.name}: {name}")
             try:
+                if model_error is not None:
+                    raise ModelError(model_error)
                 sets[name] = _verify_set(card["task"], path, entry, folder, rtol)
             except TactileError as exc:  # this set cannot be re-measured: say why, go on with the others
                 sets[name] = {"ok": False, "error": str(exc), "n_checked": 0, "n_differ": 0, "differ": []}

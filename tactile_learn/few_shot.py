@@ -19,7 +19,8 @@ from synth.errors import ConfigError
 from tactile_learn.estimators.classical.aligned_pca import AlignedPca, aligned_curves
 from tactile_learn.estimators.classical.press_aligned import NearestTouch, press_aligned_features
 from tactile_learn.tasks.base import EvalData
-from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask, _key, channel_keys
+from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask, channel_keys
+from tactile_learn.tasks.thermal_metrics import duration_key
 
 __all__ = ["FEW_SHOT_METHODS", "few_shot_evaluate", "few_shot_features", "few_shot_predict", "leave_one_out"]
 
@@ -99,6 +100,6 @@ def few_shot_evaluate(
 
     durations = tuple(DURATIONS_S if durations is None else durations)
     metrics = ThermalTask().evaluate_by_duration(predict, data, durations, group_by)
-    metrics["leave_one_out_by_duration"] = {_key(d): leave_one_out(method, train, d) for d in durations}
+    metrics["leave_one_out_by_duration"] = {duration_key(d): leave_one_out(method, train, d) for d in durations}
     metrics["n_labelled"] = int(np.count_nonzero(_labelled(train)))
     return metrics

@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from synth.errors import ModelError
+from synth.errors import ConfigError, ModelError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.idle import IdleGate, measure_idle_floor
@@ -161,6 +161,8 @@ class FrameStream:
 
     def run(self, frames: Any, batch: int = 1024) -> np.ndarray:
         """Predictions for a long array of frames, ``batch`` frames per call (a file of frames)."""
+        if not hasattr(batch, "__index__") or batch < 1:
+            raise ConfigError(f"batch: expected a positive integer, got {batch!r}")
         x = self.check(frames)
         if len(x) <= batch:
             return self.predict(x)

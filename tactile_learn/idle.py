@@ -19,6 +19,7 @@ depends on the object's and the room's temperature, not a noise floor around one
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -101,5 +102,6 @@ class IdleGate:
 
     def active(self, x: np.ndarray) -> np.ndarray:
         """(B,) bool: frames with some value beyond the idle floor (``x``: a checked batch)."""
-        flat = x.reshape(len(x), -1)
+        # the feature count spelled out: reshape(B, -1) cannot infer it for an empty batch
+        flat = x.reshape(len(x), math.prod(x.shape[1:]))
         return np.asarray((np.abs(flat - self.mean) * self.inv_sd).max(axis=1, initial=0.0) > self.threshold)

@@ -119,6 +119,10 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     """The estimator ``spec`` names for ``task`` on ``scene``, prepared: a classical method built for
     ``scene``, or a model whose card is read once and whose file is verified against it now."""
     task_obj = get_task(task)
+    if scene.task != task:  # every method reads its own sensor's config from the scene
+        raise ConfigError(
+            f"scene {scene.name!r} is a {scene.task!r} scene, not a {task!r} one (e.g. {task_obj.default_scene!r})"
+        )
     classical = task_obj.classical_methods()
     if spec in classical:
         return classical[spec](scene)

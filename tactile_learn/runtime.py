@@ -97,6 +97,9 @@ class OnnxEstimator(Estimator):
         """Read and check the card, the scene and the graph, and open the onnxruntime session, once:
         a corrupt or mismatched model fails here."""
         if "run_" not in self.__dict__:
+            if isinstance(self.threads, bool) or not isinstance(self.threads, int) or self.threads < 1:
+                # onnxruntime reads 0 as "all cores" and fails on a negative count with its own error
+                raise ConfigError(f"threads: expected a positive integer, got {self.threads!r}")
             if self.scene is not None:
                 self._check_compatible(self.scene)
             self.task_ = self._task()
@@ -144,6 +147,10 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{card_path(self.path)}: the card's scene is invalid ({exc})") from None
         if scene.digest != self.card_["scene_digest"]:
             raise ModelError(f"{card_path(self.path)}: the card's scene does not match its scene_digest")
+        if scene.task != self.card_["task"]:
+            raise ModelError(
+                f"{card_path(self.path)}: the card's task {self.card_['task']!r} is not its scene's {scene.task!r}"
+            )
         return scene
 
     @property
@@ -217,8 +224,9 @@ class OnnxEstimator(Estimator):
             raise ModelError(f"{self.path}: the ONNX graph's tactile-learn metadata is corrupt") from None
         if embedded.get("scene_digest") != card["scene_digest"] or embedded.get("task") != card["task"]:
             raise ModelError(
-                f"{self.path}: the model was built for scene {embedded.get('scene_digest')}, "
-                f"its card says {card['scene_digest']}"
+                f"{self.path}: the ONNX graph was built for a {embedded.get('task')} scene of digest "
+                f"{embedded.get('scene_digest')}, its card says {card['task']} {card['scene_digest']}: the card "
+                "belongs to another model or was edited"
             )
         inputs = session.get_inputs()
         outputs = session.get_outputs()

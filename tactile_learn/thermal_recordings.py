@@ -37,6 +37,7 @@ import numpy as np
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
 from synth.materials import accepted_labels, resolve_label
+from synth.sensors.thermal.physics import ABSOLUTE_ZERO_C
 from tactile_learn.thermal_signal import FORCE_FILTER_S, press_onset, press_profile  # re-exported: old home
 
 __all__ = [
@@ -135,6 +136,10 @@ def read_touch_columns(path: str | Path) -> dict[str, np.ndarray]:
             raise DataError(f"{where}: expected {len(header)} columns, got {len(row)}")
         for j, c in enumerate(cols):
             values[j, n] = _float(row[c].strip(), where)
+    for name, column in zip(names, values, strict=True):
+        if name.endswith("_c") and (column <= ABSOLUTE_ZERO_C).any():
+            bad = int(np.argmax(column <= ABSOLUTE_ZERO_C)) + 2  # row number (header is row 1)
+            raise DataError(f"{path}: row {bad}: {name} {column[bad - 2]:g} degC is at or below absolute zero")
     time = values[0]
     with np.errstate(over="ignore"):  # a span beyond float64 is +-inf: still ordered right
         step = np.diff(time)

@@ -37,7 +37,7 @@ import torch
 from synth import __version__
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json
-from synth.scene import Scene, load_scene
+from synth.scene import Scene, load_scene, scene_differences
 from tactile_learn.checkpoints import MODEL, load_torch, save_torch
 from tactile_learn.distributed import TrainStep, broadcast, join_world, mean_over_ranks
 from tactile_learn.progress import progress_bar
@@ -165,9 +165,10 @@ def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tupl
         data = task.load_eval_data(config.val, None if own_scene else train_set.scene)
         if data.scene.digest != train_set.scene.digest:
             # a validation set of another scene would early-stop on the wrong physics
+            differences = "; ".join(scene_differences(data.scene, train_set.scene))
             raise DataError(
                 f"{config.val}: validation scene {data.scene.name!r} differs from the training scene "
-                f"{train_set.scene.name!r}"
+                f"{train_set.scene.name!r} (validation vs training: {differences})"
             )
     else:
         raise ConfigError("--val: a validation dataset is required (generate one with another --seed)")

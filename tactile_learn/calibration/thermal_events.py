@@ -20,10 +20,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from synth.sensors.thermal.contact_events import contact_event_terms
-from tactile_learn.calibration.thermal_kinks import HALF_S, _kinks, _slope_change
+from tactile_learn.calibration.thermal_kinks import HALF_S, kink_indices, slope_change
 
 if TYPE_CHECKING:
-    from tactile_learn.calibration.thermal_calibration import _Problem
+    from tactile_learn.calibration.thermal_problem import CalibrationProblem
 
 __all__ = ["place_events"]
 
@@ -40,7 +40,7 @@ NEAR_S = 0.4
 _PROBE = 1.02
 
 
-def _templates(problem: _Problem, free: np.ndarray, i: int, taus: np.ndarray) -> np.ndarray:
+def _templates(problem: CalibrationProblem, free: np.ndarray, i: int, taus: np.ndarray) -> np.ndarray:
     """Per channel and candidate time, the reading's change per unit log factor of a step at ``taus``
     (s after touch ``i``'s onset), its object term only: (C, K, W) on the touch's samples."""
     values, lead, ramp = problem.unpack(free)
@@ -59,7 +59,7 @@ def _templates(problem: _Problem, free: np.ndarray, i: int, taus: np.ndarray) ->
 
 
 def place_events(
-    problem: _Problem, free: np.ndarray, fs: float, shared: bool = False
+    problem: CalibrationProblem, free: np.ndarray, fs: float, shared: bool = False
 ) -> tuple[list[list[float]], np.ndarray]:
     """Every touch's events (s after its onset) and each channel's starting log factor per event,
     (C, n, K) with K the most events of a touch (0 where a touch has fewer; ``shared``: one factor
@@ -87,8 +87,8 @@ def place_events(
         while len(placed) < MAX_EVENTS:
             found = []
             for c in range(len(channels)):
-                change = _slope_change(tt, current[c], n_side)
-                found += [(abs(float(change[k])), float(tt[k])) for k in _kinks(tt, change)]
+                change = slope_change(tt, current[c], n_side)
+                found += [(abs(float(change[k])), float(tt[k])) for k in kink_indices(tt, change)]
             found = [f for f in found if all(abs(f[1] - p) > NEAR_S for p in placed)]
             if not found:
                 break

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["WINDOWS_S", "event_times", "residual_kinks", "residual_windows"]
+__all__ = ["WINDOWS_S", "event_times", "kink_indices", "residual_kinks", "residual_windows", "slope_change"]
 
 #: each side's window for the slope about a sample (s)
 HALF_S = 0.3
@@ -35,7 +35,7 @@ AFTER_S = 0.8
 EXCLUDE_S = 0.1
 
 
-def _slope_change(t: np.ndarray, r: np.ndarray, n: int) -> np.ndarray:
+def slope_change(t: np.ndarray, r: np.ndarray, n: int) -> np.ndarray:
     """Right minus left least-squares slope about every sample (0 within ``n`` of an end)."""
     out = np.zeros_like(r)
     for k in range(n, len(r) - n):
@@ -45,7 +45,7 @@ def _slope_change(t: np.ndarray, r: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _kinks(t: np.ndarray, change: np.ndarray) -> list[int]:
+def kink_indices(t: np.ndarray, change: np.ndarray) -> list[int]:
     """Indices of the local maxima of ``|change|`` above the threshold, strongest first kept."""
     size = np.abs(change)
     peaks = [
@@ -82,8 +82,8 @@ def event_times(res: np.ndarray, t: np.ndarray, mask: np.ndarray, onset: np.ndar
         tt = t[i][mask[i]] - onset[i]
         found: list[tuple[float, float]] = []  # (|slope change| relative to the threshold, time)
         for c in range(res.shape[0]):
-            change = _slope_change(tt, res[c, i][mask[i]], n_side)
-            found += [(abs(float(change[k])), float(tt[k])) for k in _kinks(tt, change)]
+            change = slope_change(tt, res[c, i][mask[i]], n_side)
+            found += [(abs(float(change[k])), float(tt[k])) for k in kink_indices(tt, change)]
         kept: list[float] = []
         for _, time in sorted(found, reverse=True):
             if all(abs(time - other) > SAME_EVENT_S for other in kept):
@@ -112,8 +112,8 @@ def residual_kinks(
         times: dict[str, list[float]] = {}
         for c, ch in enumerate(channels):
             r = res[c, i][mask[i]]
-            change = _slope_change(tt, r, n_side)
-            kinks = _kinks(tt, change)
+            change = slope_change(tt, r, n_side)
+            kinks = kink_indices(tt, change)
             times[ch] = [float(tt[k]) for k in kinks]
             row[ch] = [{"t_s": round(float(tt[k]), 3), "slope_change_k_s": float(change[k])} for k in kinks]
             far = np.ones(len(r), dtype=bool)

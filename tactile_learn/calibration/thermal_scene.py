@@ -178,41 +178,8 @@ def scene_from_fit(
     v = result.values
     rows = result.report["per_touch"]
     has_passive = "passive.heat_capacity_j_m2k" in v
-    lead = v["contact.lead_s"]
-    off = v.get("heater.off_after_onset_s")
-    heated_start = [r["heated_onset_c"] for r in rows]
     ambient_values = [r["passive_onset_c"] for r in rows] if has_passive else [v.get("heater.ambient_c", 22.0)]
-    ambient = _span(ambient_values, 0.5)
-    g = v["heated.loss_w_m2k"]
-    set_point = _span(heated_start, 0.15)
-    steps = [0.0]
-    step_times = [lead + off] if off is not None else []
-    if off is not None and "heater_step_at_off_w_m2" in rows[0]:
-        # per-touch steps at the contact and at t_off: the scene's heater makes one step, of their
-        # sum, somewhere between the two times (its timing is widened over that span)
-        steps = [r["heater_step_at_contact_w_m2"] + r["heater_step_at_off_w_m2"] for r in rows]
-        step_times = [lead, lead + off]
-    elif off is not None:  # the fitted change of heater power at t_off, per touch: -(G (R0 + r lead - T_amb) + C r)
-        lags = v["heated.lag_s"] + v["heated.lag2_s"]
-        steps = [
-            -(g * (r["heated_onset_c"] + r["heated_drift_k_s"] * lags - v["heater.ambient_c"]))
-            - v["heated.heat_capacity_j_m2k"] * r["heated_drift_k_s"]
-            for r in rows
-        ]
-    sensor = SensorConfig(
-        heat_capacity_j_m2k=_around(v["heated.heat_capacity_j_m2k"], 0.05),
-        loss_w_m2k=_around(g, 0.15, 1e-3),
-        heater_w_m2=_around(max(g * (float(np.mean(heated_start)) - float(np.mean(ambient_values))), 1e-3), 0.2, 1e-3),
-        pixel_spread=0.0,
-        ambient_c=ambient,
-        lag_s=_around(v["heated.lag_s"], 0.15),
-        lag2_s=_around(v["heated.lag2_s"], 0.15),
-        heater="step" if off is not None else "constant",
-        set_point_c=set_point,
-        heater_off_s=_span(step_times, 0.3) if off is not None else (0.0, 0.0),
-        heater_step_w_m2=(min(steps) - 0.2 * abs(min(steps)), max(steps) + 0.2 * abs(max(steps))),
-        drift_k_s=_span([r["heated_drift_k_s"] for r in rows], 0.02),
-    )
+    sensor = _sensor_config(v, rows, ambient_values)
     # the touches' own spread (each refitted alone for its contact), widened by a fifth
     h = v["heated.conductance_w_m2k"]
     # only touches whose curve pins their contact count (H hardly shapes a low-effusivity object at
@@ -237,26 +204,7 @@ def scene_from_fit(
         second_object=0.0,
         property_spread=1.0,
     )
-    passive = PassiveConfig()
-    if has_passive:
-        hp = v["passive.conductance_w_m2k"]
-        # the passive channel's drift before contact: a pull towards the object (it is already
-        # cooling over a cold one) plus what is left, from the touches' fitted drifts
-        pull = np.array([r["object_c"] - r["passive_onset_c"] for r in rows])
-        drift = np.array([r["passive_drift_k_s"] for r in rows])
-        rate = max(float((pull * drift).sum() / max((pull**2).sum(), 1e-12)), 0.0)
-        rest = drift - rate * pull
-        passive = PassiveConfig(
-            enabled=True,
-            heat_capacity_j_m2k=_around(v["passive.heat_capacity_j_m2k"], 0.05),
-            loss_w_m2k=_around(v["passive.loss_w_m2k"], 0.15),
-            conductance_w_m2k=(hp * min(factors) / 1.2, hp * max(factors) * 1.2),
-            lag_s=_around(v["passive.lag_s"], 0.15),
-            lag2_s=_around(v["passive.lag2_s"], 0.15),
-            offset_k=(-0.5, 0.5),
-            drift_k_s=_span([float(rest.min()), float(rest.max())], 0.02),
-            approach_per_s=(0.5 * rate, 1.5 * rate),
-        )
+    passive = _passive_config(v, rows, factors) if has_passive else PassiveConfig()
     readout = ReadoutConfig(
         sampling_hz=FIT_HZ,
         duration_s=RECORD_S,
@@ -290,6 +238,68 @@ def scene_from_fit(
         raise DataError(
             f"the calibrated scene does not validate ({exc}); calibrate with more or longer touches"
         ) from None
+
+
+def _sensor_config(v: dict[str, float], rows: list[dict[str, float]], ambient_values: list[float]) -> SensorConfig:
+    """The heated channel's sensor from the fitted values ``v`` and the touches' rows: the fit
+    widened, the set point and ambient spanning the touches, the heater's power change per touch."""
+    lead = v["contact.lead_s"]
+    off = v.get("heater.off_after_onset_s")
+    heated_start = [r["heated_onset_c"] for r in rows]
+    ambient = _span(ambient_values, 0.5)
+    g = v["heated.loss_w_m2k"]
+    set_point = _span(heated_start, 0.15)
+    steps = [0.0]
+    step_times = [lead + off] if off is not None else []
+    if off is not None and "heater_step_at_off_w_m2" in rows[0]:
+        # per-touch steps at the contact and at t_off: the scene's heater makes one step, of their
+        # sum, somewhere between the two times (its timing is widened over that span)
+        steps = [r["heater_step_at_contact_w_m2"] + r["heater_step_at_off_w_m2"] for r in rows]
+        step_times = [lead, lead + off]
+    elif off is not None:  # the fitted change of heater power at t_off, per touch: -(G (R0 + r lead - T_amb) + C r)
+        lags = v["heated.lag_s"] + v["heated.lag2_s"]
+        steps = [
+            -(g * (r["heated_onset_c"] + r["heated_drift_k_s"] * lags - v["heater.ambient_c"]))
+            - v["heated.heat_capacity_j_m2k"] * r["heated_drift_k_s"]
+            for r in rows
+        ]
+    return SensorConfig(
+        heat_capacity_j_m2k=_around(v["heated.heat_capacity_j_m2k"], 0.05),
+        loss_w_m2k=_around(g, 0.15, 1e-3),
+        heater_w_m2=_around(max(g * (float(np.mean(heated_start)) - float(np.mean(ambient_values))), 1e-3), 0.2, 1e-3),
+        pixel_spread=0.0,
+        ambient_c=ambient,
+        lag_s=_around(v["heated.lag_s"], 0.15),
+        lag2_s=_around(v["heated.lag2_s"], 0.15),
+        heater="step" if off is not None else "constant",
+        set_point_c=set_point,
+        heater_off_s=_span(step_times, 0.3) if off is not None else (0.0, 0.0),
+        heater_step_w_m2=(min(steps) - 0.2 * abs(min(steps)), max(steps) + 0.2 * abs(max(steps))),
+        drift_k_s=_span([r["heated_drift_k_s"] for r in rows], 0.02),
+    )
+
+
+def _passive_config(v: dict[str, float], rows: list[dict[str, float]], factors: list[float]) -> PassiveConfig:
+    """The passive channel from the fitted values ``v``, the touches' rows and their contact
+    factors (its contact spans the heated one's spread)."""
+    hp = v["passive.conductance_w_m2k"]
+    # the passive channel's drift before contact: a pull towards the object (it is already
+    # cooling over a cold one) plus what is left, from the touches' fitted drifts
+    pull = np.array([r["object_c"] - r["passive_onset_c"] for r in rows])
+    drift = np.array([r["passive_drift_k_s"] for r in rows])
+    rate = max(float((pull * drift).sum() / max((pull**2).sum(), 1e-12)), 0.0)
+    rest = drift - rate * pull
+    return PassiveConfig(
+        enabled=True,
+        heat_capacity_j_m2k=_around(v["passive.heat_capacity_j_m2k"], 0.05),
+        loss_w_m2k=_around(v["passive.loss_w_m2k"], 0.15),
+        conductance_w_m2k=(hp * min(factors) / 1.2, hp * max(factors) * 1.2),
+        lag_s=_around(v["passive.lag_s"], 0.15),
+        lag2_s=_around(v["passive.lag2_s"], 0.15),
+        offset_k=(-0.5, 0.5),
+        drift_k_s=_span([float(rest.min()), float(rest.max())], 0.02),
+        approach_per_s=(0.5 * rate, 1.5 * rate),
+    )
 
 
 def _plain(config: ThermalConfig) -> dict[str, Any]:

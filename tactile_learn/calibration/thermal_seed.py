@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from synth.errors import DataError
-from synth.materials import get_material
+from synth.materials import Material, get_material
 from synth.sensors.thermal import ThermalConfig, spreading_conductance
 from tactile_learn.estimators.classical.curve_match import nominal_sensor
 from tactile_learn.estimators.classical.physics_fit import contact_drop, material_gaussians
@@ -44,31 +44,11 @@ def calibrate_sensor(
     """
     from scipy.optimize import least_squares
 
-    from tactile_learn.thermal_recordings import resample
-
     if not touches:
         raise DataError("calibration needs at least one labelled touch")
     fs = float(np.median([t.sampling_hz for t in touches]))
     step = _adc_step(touches)
-    series = []
-    for touch in touches:
-        values, onset_samples = resample(touch, fs)
-        det = detect_onset(values[None, :], fs, step)
-        if onset_samples is None:
-            if not det.detected[0]:
-                raise DataError(f"{touch.file}: no contact found in the record (is the sensor heated?)")
-            onset_samples = float(det.index[0]) + 0.5
-        end = onset_samples + fit_s * fs
-        if touch.info.get("release_s"):
-            end = min(end, (float(touch.info["release_s"]) - touch.time_s[0]) * fs)
-        n = int(min(len(values), math.floor(end) + 1))
-        if n - onset_samples < 3:
-            raise DataError(f"{touch.file}: too few samples of contact to calibrate from")
-        mat = get_material(str(touch.material))
-        pre = values[: max(int(onset_samples) - 2, 0)]
-        # noise from the whole baseline when there is one (successive differences: drift-free)
-        noise = math.sqrt(float(np.mean(np.diff(pre) ** 2)) / 2.0) if len(pre) >= 10 else float(det.sigma[0])
-        series.append((values[:n], onset_samples / fs, mat, max(noise, 1e-3), float(det.baseline[0])))
+    series = _touch_series(touches, fs, step, fit_s)
     c0, g0 = nominal_sensor(config)
     r0 = math.sqrt(config.contact.radius_mm[0] * config.contact.radius_mm[1]) * 1e-3
     h_mid = math.sqrt(config.contact.conductance_w_m2k[0] * config.contact.conductance_w_m2k[1])
@@ -104,13 +84,50 @@ def calibrate_sensor(
         return np.concatenate(out)
 
     fit = least_squares(residuals, np.array(p0), bounds=(np.array(lo), np.array(hi)), x_scale="jac", max_nfev=400)
+    return _calibrated_config(config, fit, fs, step, float(np.median(sigma)))
+
+
+def _touch_series(
+    touches: Sequence[Touch], fs: float, step: float, fit_s: float
+) -> list[tuple[np.ndarray, float, Material, float, float]]:
+    """Every touch resampled to ``fs`` up to ``fit_s`` of contact (or its release): its values,
+    onset (s), material, noise (K) and baseline."""
+    from tactile_learn.thermal_recordings import resample
+
+    series = []
+    for touch in touches:
+        values, onset_samples = resample(touch, fs)
+        det = detect_onset(values[None, :], fs, step)
+        if onset_samples is None:
+            if not det.detected[0]:
+                raise DataError(f"{touch.file}: no contact found in the record (is the sensor heated?)")
+            onset_samples = float(det.index[0]) + 0.5
+        end = onset_samples + fit_s * fs
+        if touch.info.get("release_s"):
+            end = min(end, (float(touch.info["release_s"]) - touch.time_s[0]) * fs)
+        n = int(min(len(values), math.floor(end) + 1))
+        if n - onset_samples < 3:
+            raise DataError(f"{touch.file}: too few samples of contact to calibrate from")
+        mat = get_material(str(touch.material))
+        pre = values[: max(int(onset_samples) - 2, 0)]
+        # noise from the whole baseline when there is one (successive differences: drift-free)
+        noise = math.sqrt(float(np.mean(np.diff(pre) ** 2)) / 2.0) if len(pre) >= 10 else float(det.sigma[0])
+        series.append((values[:n], onset_samples / fs, mat, max(noise, 1e-3), float(det.baseline[0])))
+    return series
+
+
+def _calibrated_config(
+    config: ThermalConfig, fit: Any, fs: float, step: float, noise: float
+) -> tuple[ThermalConfig, dict[str, Any]]:
+    """The calibrated config (the fitted sensor with a small spread, the user's readout) and the
+    summary, from the solver's result ``fit`` over (log C, log G, log a, then per touch b, V0,
+    log H, t0, log e)."""
     p = fit.x
     c_fit, g_fit, a_fit = (math.exp(v) for v in p[:3])
     per = p[3:].reshape(-1, 5)
     h_fit = np.exp(per[:, 2])
     v0_fit = per[:, 1]
     baseline = per[:, 0]
-    noise = float(np.median(sigma))
     # the calibrated scene: the fitted sensor with a small spread, the user's readout
     excess = float(np.median(v0_fit))  # objects near ambient on average: Q / G ~ V0
     sc, cc, rc = config.sensor, config.contact, config.readout

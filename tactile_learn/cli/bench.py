@@ -42,9 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from tactile_learn.bench import bench_simulator, bench_task
     from tactile_learn.bench_report import markdown, pareto_plot
 
+    tasks = ["strips", "thermal", "fsr", "capacitive", "simulator"] if args.task == "all" else [args.task]
+    _check_methods(args.method, [args.task] if args.suite else tasks)
     if args.suite:
         return _run_suite(args)
-    tasks = ["strips", "thermal", "fsr", "capacitive", "simulator"] if args.task == "all" else [args.task]
     results: list[dict[str, Any]] = []
     for task in tasks:
         if task == "simulator":
@@ -73,6 +74,18 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         pareto_plot(results, args.plot)
     return 0
+
+
+def _check_methods(names: list[str] | None, tasks: list[str]) -> None:
+    """Every ``--method`` is a method of one of ``tasks`` (an unknown name gave an empty table)."""
+    from tactile_learn.methods import available_methods
+
+    known = [m for task in tasks if task not in ("simulator", "all") for m in available_methods(task)]
+    unknown = [name for name in names or () if name not in known]
+    if unknown:
+        raise ConfigError(
+            f"--method: {unknown[0]!r} is not a method of {' or '.join(tasks)} (available: {', '.join(known)})"
+        )
 
 
 def _run_suite(args: argparse.Namespace) -> int:

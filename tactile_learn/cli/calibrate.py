@@ -8,6 +8,7 @@ from synth.errors import ConfigError
 from synth.io import json_dumps
 from synth.scene import load_scene
 from tactile_learn.tasks import TASK_NAMES, get_task
+from tactile_learn.tasks.base import Task
 
 HELP = "fit a real sensor's own parameters from labelled recordings; writes a scene .toml"
 EXAMPLES = """\
@@ -18,8 +19,10 @@ The thermal task reads a folder with touches.csv (file,material[,...]) and one C
 (time_s,temperature_c[,passive_c][,force]); with a passive or force column, or labels that are
 families (metal, wood) or your classes (--classes), the real-sensor model is fitted (lags, heater,
 drift, contact build-up, passive channel) and its report is written beside the scene (.json).
-See the task's documentation for the fsr format. The output is a scene file
-that generate, train and eval accept wherever a scene name goes."""
+fsr: an .npz (or dataset folder) of known presses, 'readings' (B, 6) ADC codes, 'xy_mm' (B, 2) and
+'force_n' (B,), a few on top of each of the six sensors; capacitive: 'readings' and the known tab loads
+'cell_load', both (B, F, N, M). strips has no calibration. The output is a scene file that generate,
+train and eval accept wherever a scene name goes."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -36,8 +39,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--classes", default=None, help="thermal: TOML file mapping your class names to materials")
 
 
+def calibrated_tasks() -> tuple[str, ...]:
+    """The tasks with a calibration of their own (the others keep Task's, which has none)."""
+    return tuple(name for name in TASK_NAMES if type(get_task(name)).calibrate is not Task.calibrate)
+
+
 def run(args: argparse.Namespace) -> int:
     task = get_task(args.task)
+    if args.task not in calibrated_tasks():
+        raise ConfigError(
+            f"--task {args.task}: this sensor has no calibration (calibrate supports {', '.join(calibrated_tasks())})"
+        )
     scene = load_scene(args.scene or task.default_scene)
     if args.task == "thermal":
         from synth.materials import load_class_map

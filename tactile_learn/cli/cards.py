@@ -10,7 +10,7 @@ from typing import Any
 
 from synth.errors import ConfigError
 from synth.io import atomic_write_json
-from tactile_learn.cli.common import positive_int
+from tactile_learn.cli.common import non_negative_float, positive_int
 
 HELP = "model cards: add held-out metrics to a card, or re-verify every card's metrics"
 EXAMPLES = """\
@@ -39,7 +39,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--suite", default=None, help="add: a suite name or file (metrics per family)")
     parser.add_argument("--n", type=positive_int, default=None, help="add --suite: frames per family")
     parser.add_argument(
-        "--rtol", type=float, default=None, help="relative tolerance (default: 1e-6, float32 rounding; 0: bit-exact)"
+        "--rtol",
+        type=non_negative_float,
+        default=None,
+        help="relative tolerance (default: 1e-6, float32 rounding; 0: bit-exact)",
     )
     parser.add_argument("--json", default=None, help="write the full comparison here")
     parser.add_argument("--workdir", default=None, help="generate the held-out sets here (default: a temp folder)")

@@ -80,7 +80,7 @@ def _quick_model(out: Path, train_n: int) -> None:
     recipe = ["--epochs", "3", "--quiet", *resume]
     _cli(["train", "--task", "strips", "--data", str(train), "--val", str(val), "--out", str(run_dir), *recipe])
     model = out / "strips16-demo.onnx"
-    _cli(["export", str(run_dir), "--out", str(model), "--test", str(test)])
+    _cli(["export", str(run_dir), "--out", str(model), "--test", str(test), "--overwrite"])  # a rerun's own model
     # the quick model, then the shipped one for comparison
     for method in (str(model), "strips16"):
         _cli(["eval", "--task", "strips", "--data", str(test), "--method", method, "--summary"])

@@ -6,6 +6,8 @@ import argparse
 import time
 from pathlib import Path
 
+import numpy as np
+
 from synth.dataset import MANIFEST
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_json, json_dumps
@@ -83,6 +85,19 @@ def _durations(text: str) -> tuple[float, ...]:
     return values
 
 
+def _check_truth(truth: dict[str, np.ndarray], source: str) -> None:
+    """The metrics compare against ``truth``: a NaN or inf there would turn them into NaN (or a
+    mean over fewer frames) without a word, so it is refused, naming the array and the frame."""
+    for key, values in truth.items():
+        if values.dtype.kind in "fc":
+            bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+            if bad.any():
+                raise DataError(
+                    f"{source}: the truth {key!r} holds NaN or inf (first in frame {int(np.argmax(bad))}); "
+                    "metrics need finite truth"
+                )
+
+
 def run(args: argparse.Namespace) -> int:
     if (args.data is None) == (args.suite is None):
         raise ConfigError("give either --data or --suite")
@@ -98,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         data = data.subset(slice(0, args.limit))
     if len(data) == 0:
         raise DataError(f"{args.data}: no frames to evaluate")
+    _check_truth(data.truth, args.data)
     options = {k: v for k, v in (("durations", args.durations), ("group_by", args.group_by)) if v is not None}
     if options and args.task != "thermal":
         raise ConfigError(f"--durations and --group-by apply to the thermal task, not {args.task!r}")

@@ -26,7 +26,7 @@ A folder holding a different dataset is refused without --overwrite."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", required=True, help="shipped scene name or path to a scene .toml")
-    parser.add_argument("--n", required=True, type=non_negative_int, help="number of samples")
+    parser.add_argument("--n", required=True, type=positive_int, help="number of samples")
     parser.add_argument("--seed", required=True, type=non_negative_int, help="dataset seed")
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--workers", type=positive_int, default=1, help="worker processes (default 1)")

@@ -53,6 +53,8 @@ def run(args: argparse.Namespace) -> int:
     gate = args.gate if args.gate is not None else args.task in IDLE_KEYS
     stream = FrameStream(estimator, gate=gate)
     frames = stream.check(arrays[task.input_key])
+    if not len(frames):
+        raise DataError(f"{args.frames}: {task.input_key!r} holds no frames (shape {frames.shape})")
     start = time.perf_counter()
     prediction = stream.run(frames, batch=args.batch)
     seconds = time.perf_counter() - start

@@ -52,6 +52,7 @@ single stimulus may leave the batch axis out). Without --noise the readings are 
   np.savez("presses.npz", xy_mm=[[0, 0], [10, 5.8]], force_n=[2.0, 6.0], tip_radius_mm=4.0)
   np.savez("touch.npz", object_c=[20.0, 20.0], material=["aluminium", "oak"], contact_s=2.0)
   np.savez("my_field.npz", field_kpa=field)  # strips16: (64, 64) cells of 0.625 mm, kPa
+  np.savez("press.npz", field_kpa=frames)  # capacitive8: (F, 42, 42) cells of 0.45 mm, 5 of them padding
 Strip fields: cell (k, l) is centred at y = (k+0.5) h, x = (l+0.5) h with h = pitch / s (s =
 samples_per_pitch); capacitive fields lie on the padded lattice (geometry.lattice_shape).
 {_fields_help()}
@@ -67,7 +68,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", required=True, help="output .npz")
     parser.add_argument("--noise", type=on_off, default=False, help="on|off: noise and ADC (default off)")
-    parser.add_argument("--seed", type=non_negative_int, default=0, help="noise seed (with --noise on)")
+    parser.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        help="noise seed (with --noise on; default 0: the same noise every run)",
+    )
 
 
 def simulate_arrays(

@@ -70,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="",
         help="network size (task-specific; default: the smallest, or with --init the size of those weights)",
     )
-    parser.add_argument("--epochs", type=non_negative_int, default=0, help="maximum epochs (default: the task's)")
+    parser.add_argument("--epochs", type=positive_int, default=0, help="maximum epochs, >= 1 (default: the task's)")
     parser.add_argument("--batch-size", type=positive_int, default=256)
     parser.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (one-cycle)")
     parser.add_argument("--seed", type=non_negative_int, default=0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import tomllib
 
 from synth.config import dumps_toml, from_dict, param, replace, to_dict
 from synth.errors import ConfigError
-from synth.scene import available_scenes, load_scene, parse_scene
+from synth.scene import available_scenes, load_scene, parse_scene, scene_differences
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,16 @@ def test_shipped_scenes_load_and_digests_differ() -> None:
     assert {"strips16", "strips16_one", "strips5"} <= set(names)
     digests = {load_scene(n).digest for n in names}
     assert len(digests) == len(names)
+
+
+def test_scene_differences_name_the_keys_the_digest_compares() -> None:
+    scene = load_scene("strips16")
+    quiet = dataclasses.replace(scene, noise=False, name="other", description="renamed")
+    assert scene_differences(scene, scene) == []
+    assert scene_differences(scene, quiet) == ["noise: True vs False"]  # name and description are not physics
+    other = load_scene("strips5")
+    lines = scene_differences(scene, other, limit=2)
+    assert len(lines) == 3 and lines[-1].startswith("... and ") and "geometry" in " ".join(lines)
 
 
 def test_scene_file_errors(tmp_path: Path) -> None:

@@ -20,7 +20,7 @@ pytest.importorskip("torch", reason="torch (training extra) is not installed: no
 import torch
 
 from synth.dataset import generate
-from synth.errors import InputError, ModelError
+from synth.errors import DataError, InputError, ModelError
 from synth.scene import load_scene
 from tactile_learn.checkpoints import load_weights as load_run
 from tactile_learn.export import PARITY_TOL, export
@@ -241,3 +241,12 @@ def test_fine_tuning_starts_from_the_given_weights(run: Path, data: Path) -> Non
     assert changed  # it did train
     with pytest.raises(ConfigError, match="size"):
         train(dataclasses.replace(config, out=str(data / "bad"), size="large"), progress=False)
+
+
+def test_a_validation_set_of_other_physics_is_refused_naming_the_difference(data: Path) -> None:
+    quiet = dataclasses.replace(load_scene("strips5"), noise=False)
+    generate(quiet, 50, 2, data / "val_quiet")
+    with pytest.raises(
+        DataError, match=r"differs from the training scene 'strips5' \(validation vs training: noise: False vs True\)"
+    ):
+        train(dataclasses.replace(_config(data, "run_quiet", epochs=1), val=str(data / "val_quiet")), progress=False)

@@ -16,7 +16,8 @@ from synth.config import replace
 from synth.errors import ConfigError, DataError
 from synth.scene import load_scene, parse_scene
 from synth.sensors.thermal import make_simulator
-from tactile_learn.calibration.thermal_calibration import _Problem, noise_levels, prepare_touches
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import noise_levels, prepare_touches
 from tactile_learn.cli import main
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import calibrate_recordings, write_scene
@@ -110,12 +111,12 @@ def simulated_series(
     return series, {"heated": noise_levels(heated), "passive": noise_levels(passive)}, arrays
 
 
-def problems_without_and_with(nuisance: str, classes: list) -> tuple[_Problem, _Problem]:
+def problems_without_and_with(nuisance: str, classes: list) -> tuple[CalibrationProblem, CalibrationProblem]:
     """Two simulated touches of the robot scene as heated + passive calibration problems: the
     default one and one with the opt-in ``nuisance`` term (a term's tests compare the two)."""
     series, _, _ = simulated_series(robot_scene(), 2, 5)
     touches = prepare_touches(series)
-    return _Problem(touches, classes, True), _Problem(touches, classes, True, (nuisance,))
+    return CalibrationProblem(touches, classes, True), CalibrationProblem(touches, classes, True, (nuisance,))
 
 
 def robot_touches(n: int, seed: int, scene: object = None) -> list[Touch]:

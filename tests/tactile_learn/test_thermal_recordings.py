@@ -87,6 +87,11 @@ GOOD = "time_s,temperature_c\n0,30\n0.1,30\n0.2,29.5\n"
             "not a finite number",
         ),
         ("file,material\na.csv,oak\n", {"a.csv": "time_s,temperature_c\n0,30\n0.1,warm\n"}, "not a number"),
+        (
+            "file,material\na.csv,oak\n",
+            {"a.csv": "time_s,temperature_c,passive_c\n0,30,22\n0.1,30,-400\n0.2,29,22\n"},
+            "row 3: passive_c -400 degC is at or below absolute zero",
+        ),
         ("file,material\na.csv,unobtainium\n", {"a.csv": GOOD}, "unknown material 'unobtainium'"),
         ("file,material\na.csv,copper\n", {"a.csv": GOOD}, "not in the scene's list"),
         ("file,material\n", {}, "lists no touches"),

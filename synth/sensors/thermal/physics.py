@@ -65,6 +65,7 @@ from scipy import special
 from synth.errors import InputError
 
 __all__ = [
+    "ABSOLUTE_ZERO_C",
     "ContactModel",
     "contact_excess",
     "phi",
@@ -76,6 +77,9 @@ __all__ = [
 
 # -------------------------------------------------------------------------------------------------
 # physics: the analytic contact solution
+
+#: no temperature (degC) of an object, a room or a recording can be at or below this
+ABSOLUTE_ZERO_C = -273.15
 
 _SQRT_PI = math.sqrt(math.pi)
 #: power-series coefficients of g(y) = (1 - erfcx(y)) / y = sum_n (-1)^(n+1) y^(n-1) / Gamma(n/2 + 1)

@@ -26,7 +26,7 @@ from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.model import StimulusGenerator
 from synth.sensors.thermal.config import ThermalConfig
-from synth.sensors.thermal.physics import spreading_conductance
+from synth.sensors.thermal.physics import ABSOLUTE_ZERO_C, spreading_conductance
 from synth.sensors.thermal.touch import draw_dynamics
 
 __all__ = ["OUTPUTS", "TouchGenerator", "Touches"]
@@ -85,6 +85,11 @@ def _per_touch(values: dict[str, Any]) -> tuple[dict[str, np.ndarray], int]:
             raise InputError(f"{name}: must be > 0")
     if (arrays["onset_s"] < 0).any():
         raise InputError("onset_s: must be >= 0 (seconds from the record's start)")
+    for name in ("object_c", "ambient_c"):
+        if (arrays[name] <= ABSOLUTE_ZERO_C).any():
+            raise InputError(
+                f"{name}: {arrays[name].min():g} degC is at or below absolute zero ({ABSOLUTE_ZERO_C} degC)"
+            )
     return arrays, b
 
 

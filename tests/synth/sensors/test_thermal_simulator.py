@@ -10,10 +10,11 @@ import pytest
 
 from synth.config import replace
 from synth.dataset import simulate_shard
-from synth.errors import ConfigError
+from synth.errors import ConfigError, InputError
 from synth.materials import FAMILIES, effusivity_range, get_material, library, sample_properties
 from synth.scene import load_scene, parse_scene
 from synth.sensors.thermal import ContactModel, ThermalConfig, make_simulator, touch_excess
+from synth.sensors.thermal.stimuli import Touches
 
 #: effusivities of the reference table (physics.md section 3), W s^0.5 / (m^2 K)
 REFERENCE_E = {
@@ -157,3 +158,14 @@ def test_single_pixel_grid_and_the_seeds_two_objects(rng: np.random.Generator) -
     two = make_simulator(dataclasses.replace(scene, sensor=replace(scene.sensor, "objects.second_object", 1.0)))
     layout = two.simulate(50, rng)["latent_object"]
     assert ((layout == 0).any(axis=1) & (layout == 1).any(axis=1)).all()
+
+
+@pytest.mark.parametrize(("field", "value"), [("object_c", -300.0), ("ambient_c", -273.15)])
+def test_a_temperature_at_or_below_absolute_zero_is_refused(field: str, value: float) -> None:
+    config = load_scene("thermal").sensor
+    kwargs = {"object_c": 20.0, "ambient_c": 22.0, field: value}
+    common = {"k_w_mk": 0.2, "rho_kg_m3": 600.0, "c_j_kgk": 1700.0, "conductance_w_m2k": 1e4}
+    with pytest.raises(InputError, match=f"{field}: .* absolute zero"):
+        Touches.from_objects(config, **kwargs, **common, radius_mm=5.0, onset_s=2.6, contact_s=2.5)
+    kwargs[field] = -273.0  # just above it: a valid (if cold) temperature
+    assert len(Touches.from_objects(config, **kwargs, **common, radius_mm=5.0, onset_s=2.6, contact_s=2.5)) == 1

@@ -10,7 +10,9 @@ import numpy as np
 from scipy import optimize
 
 from synth.materials import get_material
-from tactile_learn.calibration.thermal_calibration import PRIOR_ROW_TOUCH_K, _Problem, prepare_touches
+from tactile_learn.calibration.thermal_parameters import PRIOR_ROW_TOUCH_K
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import prepare_touches
 from tests.tactile_learn.test_thermal_real import problems_without_and_with, robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
@@ -19,7 +21,7 @@ CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 def test_gap_and_speed_are_recovered() -> None:
     scene = robot_scene(**{"objects.offset_k": [-10.0, -4.0]})
     series, noise, _ = simulated_series(scene, 4, 11)
-    problem = _Problem(prepare_touches(series), CLASSES, True, ("approach",))
+    problem = CalibrationProblem(prepare_touches(series), CLASSES, True, ("approach",))
     problem.prior_row_k = PRIOR_ROW_TOUCH_K  # weak linear priors: 1 K rows pull the drifts
     names = [p.name for p in problem.shared]
     i_gap, i_speed = names.index("approach.gap_um"), names.index("approach.speed_mm_s")

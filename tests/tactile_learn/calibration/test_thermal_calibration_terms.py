@@ -8,12 +8,9 @@ import numpy as np
 import pytest
 
 from synth.materials import get_material
-from tactile_learn.calibration.thermal_calibration import (
-    PRIOR_ROW_TOUCH_K,
-    FitTouch,
-    _Problem,
-    prepare_touches,
-)
+from tactile_learn.calibration.thermal_parameters import PRIOR_ROW_TOUCH_K
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import FitTouch, prepare_touches
 from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
@@ -28,8 +25,8 @@ def simulated() -> tuple[list[FitTouch], dict[str, dict[str, float]]]:
 
 def test_noise_weights(simulated: tuple[list[FitTouch], dict[str, dict[str, float]]]) -> None:
     touches, noise = simulated
-    plain = _Problem(touches, CLASSES, True)
-    weighted = _Problem(touches, CLASSES, True, noise=noise)
+    plain = CalibrationProblem(touches, CLASSES, True)
+    weighted = CalibrationProblem(touches, CLASSES, True, noise=noise)
     assert np.array_equal(plain.weight, np.ones_like(plain.weight))
     w = weighted.weight[:, weighted.mask]
     assert np.all(w > 0) and np.isclose(np.mean(w**2), 1.0)
@@ -45,7 +42,7 @@ def test_noise_weights(simulated: tuple[list[FitTouch], dict[str, dict[str, floa
     same = plain.with_touch_contact()
     assert np.array_equal(same.weight, plain.weight) and same.prior_row_k == plain.prior_row_k
     free = plain.start()
-    assert np.array_equal(plain.solve(free)[0], _Problem(touches, CLASSES, True).solve(free)[0])
+    assert np.array_equal(plain.solve(free)[0], CalibrationProblem(touches, CLASSES, True).solve(free)[0])
 
 
 @pytest.mark.parametrize("weighted", [False, True])
@@ -55,7 +52,7 @@ def test_precursor_amplitude_is_recovered(
     """Curves made from the model's own columns with known linear values (a precursor of 40 % of
     V0 on the heated channel, 20 % on the passive one) plus white noise: the fit gives them back."""
     touches, noise = simulated
-    problem = _Problem(touches, CLASSES, True, ("contact_precursor",), noise if weighted else None)
+    problem = CalibrationProblem(touches, CLASSES, True, ("contact_precursor",), noise if weighted else None)
     problem.prior_row_k = PRIOR_ROW_TOUCH_K  # the linear priors weak (1 K rows pull a drift of 0.05 K/s)
     free = problem.start()
     cols, power, extra = problem.design(free)
@@ -93,7 +90,7 @@ def test_heated_only_touches_get_one_precursor_column(
 ) -> None:
     touches, _ = simulated
     heated_only = [FitTouch(t.file, t.label, t.t, t.heated, None, t.onset_s) for t in touches]
-    problem = _Problem(heated_only, CLASSES, True, ("contact_precursor",))
+    problem = CalibrationProblem(heated_only, CLASSES, True, ("contact_precursor",))
     assert problem.nuisance_columns == ["heated_precursor_k"]
     _, sol, _ = problem.solve(problem.start())
     assert sol.shape == (len(touches), 2 + 1 + 1) and np.isfinite(sol).all()

@@ -11,16 +11,20 @@ import numpy as np
 from scipy import optimize
 
 from synth.materials import get_material
-from tactile_learn.calibration.thermal_calibration import PRIOR_ROW_TOUCH_K, _Problem, prepare_touches
+from tactile_learn.calibration.thermal_parameters import PRIOR_ROW_TOUCH_K
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import prepare_touches
 from tests.tactile_learn.test_thermal_real import problems_without_and_with, robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
 
 
-def _simulated(drift_k_s: float, tau_s: float) -> tuple[_Problem, np.ndarray, int, dict[str, dict[str, float]]]:
+def _simulated(
+    drift_k_s: float, tau_s: float
+) -> tuple[CalibrationProblem, np.ndarray, int, dict[str, dict[str, float]]]:
     scene = robot_scene(**{"objects.offset_k": [-10.0, -4.0]})
     series, noise, _ = simulated_series(scene, 4, 17)
-    problem = _Problem(prepare_touches(series), CLASSES, True, ("drift_ends",))
+    problem = CalibrationProblem(prepare_touches(series), CLASSES, True, ("drift_ends",))
     problem.prior_row_k = PRIOR_ROW_TOUCH_K  # weak linear priors: 1 K rows pull the drifts
     i_tau = [p.name for p in problem.shared].index("heated.drift_end_s")
     truth = problem.start()
@@ -38,7 +42,7 @@ def _simulated(drift_k_s: float, tau_s: float) -> tuple[_Problem, np.ndarray, in
     return problem, truth, i_tau, noise
 
 
-def _fit_lag(problem: _Problem, truth: np.ndarray, i_tau: int, start_s: float) -> tuple[float, np.ndarray]:
+def _fit_lag(problem: CalibrationProblem, truth: np.ndarray, i_tau: int, start_s: float) -> tuple[float, np.ndarray]:
     def residuals(theta: np.ndarray) -> np.ndarray:
         x = truth.copy()
         x[i_tau] = theta[0]

@@ -12,12 +12,9 @@ import numpy as np
 import pytest
 
 from synth.materials import get_material
-from tactile_learn.calibration.thermal_calibration import (
-    EVENT_FACTOR_MAX,
-    EVENT_SHIFT_S,
-    calibrate_channels,
-    prepare_touches,
-)
+from tactile_learn.calibration.thermal_calibration import calibrate_channels
+from tactile_learn.calibration.thermal_parameters import EVENT_FACTOR_MAX, EVENT_SHIFT_S
+from tactile_learn.calibration.thermal_touches import prepare_touches
 from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
 
 pytestmark = pytest.mark.slow  # a 4-touch calibration: ~25 s of CPU

@@ -13,13 +13,10 @@ import pytest
 from scipy import optimize
 
 from synth.materials import get_material
-from tactile_learn.calibration.thermal_calibration import (
-    FIT_HZ,
-    PRIOR_ROW_TOUCH_K,
-    _Problem,
-    prepare_touches,
-)
 from tactile_learn.calibration.thermal_events import place_events
+from tactile_learn.calibration.thermal_parameters import PRIOR_ROW_TOUCH_K
+from tactile_learn.calibration.thermal_problem import CalibrationProblem
+from tactile_learn.calibration.thermal_touches import FIT_HZ, prepare_touches
 from tests.tactile_learn.test_thermal_real import robot_scene, simulated_series
 
 CLASSES = [[get_material("aluminium")], [get_material("oak")]]
@@ -28,10 +25,10 @@ EVENTS = [(0, 2.5, 1.3, 0.8), (1, 3.2, 0.75, 1.25), (2, 2.0, 1.0, 1.0)]
 
 
 @pytest.fixture(scope="module")
-def simulated() -> tuple[_Problem, np.ndarray, dict[str, dict[str, float]]]:
+def simulated() -> tuple[CalibrationProblem, np.ndarray, dict[str, dict[str, float]]]:
     scene = robot_scene(**{"objects.offset_k": [-10.0, -4.0]})
     series, noise, _ = simulated_series(scene, 4, 11)
-    problem = _Problem(prepare_touches(series), CLASSES, True, ("contact_events",))
+    problem = CalibrationProblem(prepare_touches(series), CLASSES, True, ("contact_events",))
     times = [[t for i_, t, *_ in EVENTS if i_ == i] for i in range(problem.n)]
     problem = problem.with_events(times).with_touch_contact()
     problem.prior_row_k = PRIOR_ROW_TOUCH_K  # weak linear priors: 1 K rows pull the drifts
@@ -53,7 +50,7 @@ def simulated() -> tuple[_Problem, np.ndarray, dict[str, dict[str, float]]]:
     return problem, truth, noise
 
 
-def _event_columns(problem: _Problem) -> np.ndarray:
+def _event_columns(problem: CalibrationProblem) -> np.ndarray:
     names = [p.name for p in problem.per_touch]
     groups = [g for g, name in enumerate(names) if name.startswith("event")]
     return np.array([problem.n_free + g * problem.n + i for g in groups for i in range(problem.n)])
@@ -61,8 +58,8 @@ def _event_columns(problem: _Problem) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def placed(
-    simulated: tuple[_Problem, np.ndarray, dict[str, dict[str, float]]],
-) -> tuple[_Problem, np.ndarray, list[list[float]], np.ndarray]:
+    simulated: tuple[CalibrationProblem, np.ndarray, dict[str, dict[str, float]]],
+) -> tuple[CalibrationProblem, np.ndarray, list[list[float]], np.ndarray]:
     """The same data as a problem without events (its truth otherwise), and the events placed."""
     problem, truth, _ = simulated
     plain = copy.copy(problem)
@@ -74,7 +71,7 @@ def placed(
 
 
 def test_events_are_placed_at_the_steps_and_nowhere_else(
-    placed: tuple[_Problem, np.ndarray, list[list[float]], np.ndarray],
+    placed: tuple[CalibrationProblem, np.ndarray, list[list[float]], np.ndarray],
 ) -> None:
     _, _, times, logs = placed
     # no event on the touches without a step (their residual is noise: no kink)
@@ -90,8 +87,8 @@ def test_events_are_placed_at_the_steps_and_nowhere_else(
 
 
 def test_the_factors_are_recovered_and_no_step_is_invented(
-    simulated: tuple[_Problem, np.ndarray, dict[str, dict[str, float]]],
-    placed: tuple[_Problem, np.ndarray, list[list[float]], np.ndarray],
+    simulated: tuple[CalibrationProblem, np.ndarray, dict[str, dict[str, float]]],
+    placed: tuple[CalibrationProblem, np.ndarray, list[list[float]], np.ndarray],
 ) -> None:
     """From the placed events and their first-order sizes, a fit of every event's factors and
     time (the touches' own contacts and everything else at the truth) gives the steps back; any

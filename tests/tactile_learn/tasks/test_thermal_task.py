@@ -15,6 +15,7 @@ from tactile_learn.estimators.base import Estimator
 from tactile_learn.estimators.classical.curve_match import detect_onset
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask, class_names, oracle_accuracy_by_duration, view
+from tactile_learn.tasks.thermal_data import eval_data_from_arrays
 
 WNS = load_scene("thermal_wns")
 TASK = ThermalTask()
@@ -115,7 +116,7 @@ def test_classical_methods_beat_chance_on_clean_long_touches(method: str, floor:
     chance is 1/3."""
     scene = WNS.with_noise(False)
     arrays = simulate_shard(scene, 31, 0, 20)
-    data = TASK._from_arrays(arrays, scene, "test")
+    data = eval_data_from_arrays(arrays, scene, "test")
     obj = data.extra["touch"] * 2 + data.extra["latent_object"]
     _, first = np.unique(np.where(data.truth["label"] < 3, obj, -1), return_index=True)
     rows = first[data.truth["label"][first] < 3]
@@ -128,7 +129,7 @@ def test_classical_methods_beat_chance_on_clean_long_touches(method: str, floor:
 
 def test_onset_detection_finds_the_contact_and_ignores_flat_padding() -> None:
     arrays = simulate_shard(WNS, 8, 0, 4)
-    data = TASK._from_arrays(arrays, WNS, "t")
+    data = eval_data_from_arrays(arrays, WNS, "t")
     fs = WNS.sensor.readout.sampling_hz
     contact = data.truth["label"] < 3
     x, _ = view(data, 1.0)
