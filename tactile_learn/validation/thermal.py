@@ -23,12 +23,12 @@ def thermal_input_shape(config: ThermalConfig) -> tuple[int, ...]:
 
 def thermal_check(config: ThermalConfig) -> InputCheck:
     """Windows (B, W) or (B, C, W) as float32: the shape, NaN/inf, and the ADC's range (a reading at
-    either end of ``adc_range_c`` is saturated). A temperature may be negative: below the ADC's
-    bottom is what is refused, with that name, not "negative"."""
+    either end of ``adc_range_c`` is saturated; below a range starting at 0 degC it is a negative,
+    invalid reading)."""
     lo, hi = config.readout.adc_range_c
     return InputCheck(
         thermal_input_shape(config),
-        allow_negative=True,  # the lower bound below refuses what the ADC cannot read
+        allow_negative=lo < 0,
         upper=float(hi),
         upper_name="the ADC's top (degC)",
         lower=float(lo),
