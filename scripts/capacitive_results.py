@@ -1,4 +1,4 @@
-"""The capacitive array's figures (README "Capacitive array"): a recipe over the package's API.
+"""The capacitive array's figures (docs/capacitive.md): a recipe over the package's API.
 
     python scripts/capacitive_results.py calibration --json results/capacitive-calibration.json
     python scripts/capacitive_results.py hysteresis --json results/capacitive-hysteresis.json

@@ -1,7 +1,7 @@
 """Start a smaller general strip network (architecture 2) from a trained larger one, for fine-tuning
 (``tactile-learn train --init``): the channels, context units and mixing blocks the smaller size
 keeps are the larger network's most used ones, so training starts from a working inverse instead of
-from scratch (measured: README, strips Pareto section).
+from scratch (measured: docs/strips.md, strips Pareto section).
 
 Which ones are kept: per layer, the units whose outgoing weights have the largest norm (a unit the
 next layer barely reads matters least); the first mixing blocks; the head reads the kept channels.

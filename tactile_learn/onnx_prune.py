@@ -4,7 +4,7 @@ onnxruntime runs every node of a graph whatever outputs a call asks for: the gen
 models' graphs compute two check outputs beside the pressure map (the readings residual and
 balance, :data:`~tactile_learn.strips_guard.CHECK_OUTPUTS`: 12 of strips16_small's 77 nodes,
 four of them MatMuls), which ``predict`` never reads: ~20 us of its ~67 at batch 1 (measured,
-README). :func:`first_output_graph` keeps the nodes the first output depends on, the initializers
+docs/speed.md). :func:`first_output_graph` keeps the nodes the first output depends on, the initializers
 they read and the graph's metadata; the kept nodes compute what they compute in the whole graph
 (tests: bit-identical). It needs the ``onnx`` package (in the runtime extra: ~20 us of
 strips16_small's batch 1 is worth the model format's own reader); where it is not installed, or

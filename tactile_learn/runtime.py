@@ -42,7 +42,7 @@ CARD_FORMAT = 1
 METADATA_KEY = "tactile_learn"
 #: onnxruntime graph optimisation levels a card may ask for (``card["graph_optimization"]``; default
 #: "all"). The NCHWc layout rewrite of "all" helps large convolutions and slows the strip networks'
-#: small ones at batch 1 (measured: scripts/strips_pareto.py, README), so their cards ask for "extended".
+#: small ones at batch 1 (measured: scripts/strips_pareto.py, docs/strips.md), so their cards ask for "extended".
 GRAPH_OPTIMIZATION = ("basic", "extended", "all")
 
 

@@ -20,7 +20,7 @@ sum over its segments of the share of resistance that pressure removed), per fra
 
 - ``residual_sigma``: the RMS over strips of the load difference in units of each strip's load
   noise (how many noise standard deviations the map leaves unexplained). The flag of the general
-  model uses this one: it separates frames unlike the training data best (README);
+  model uses this one: it separates frames unlike the training data best (docs/strips.md);
 - ``residual_rel``: the same RMS difference divided by the RMS measured load plus ``noise_floor``
   times the RMS load noise: scale-free (a strong and a weak press of one shape score alike), the
   number ``eval`` reports for every method.

@@ -92,7 +92,7 @@ __all__ = [
 #: the maximum-likelihood fit under the noise model the residual is reported in. Off, every sample
 #: of both channels weighs the same in K (the passive channel's white noise is ~7 times smaller).
 #: Off by default: on R_1 it lowers the residual in sigma (37 -> 30) by trading the heated channel's
-#: mK for the passive one's (see the README's calibration section)
+#: mK for the passive one's (see docs/thermal-real.md, calibration)
 NOISE_WEIGHTED = False
 #: solver evaluations of the joint refinement (shared + every touch's own contact)
 TOUCH_RUN = 40

@@ -33,7 +33,7 @@ classical method: the task's default) unless --scene names one. Prints and write
 {"task", "method", "n_frames", "metrics": {...}}. With --suite (families of shapes, synth/suites/),
 fresh frames of every family are simulated (--n per family, --seed) and the metrics are reported per
 family and as their mean over families: {"suite", "families": {...}, "mean_over_families": {...}}.
-The thermal few-shot methods (aligned_pca, press_aligned: README, Real thermal recordings) learn
+The thermal few-shot methods (aligned_pca, press_aligned: docs/thermal-real.md) learn
 from the labelled recordings in --train (one model per duration) and add their leave-one-out
 accuracy on them (leave_one_out_by_duration)."""
 

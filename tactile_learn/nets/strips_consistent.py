@@ -16,7 +16,7 @@ cancels in the ratio, so the step needs the segments' ``(1 - f)^((n + 1) / n)`` 
 Measured after the fact on the shipped wide network's maps (no training; the ood suite and two
 independent draws of it): one step lifts the margin over the best classical method by 0.002 (0.048
 -> 0.050 on all three draws) and two spheres by 0.001; more steps or the additive (Gauss-Newton)
-projection gain less on the block at 30 degrees (README, "A consistency step").
+projection gain less on the block at 30 degrees (docs/strips.md, "A consistency step").
 
 **Separable form.** The forward model's stress operators are dense ``(N*M, N*M)`` matrices per
 layer, but the physics builds each as a short sum of separable terms (``synth``'s

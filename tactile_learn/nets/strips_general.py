@@ -50,7 +50,7 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
     "small": (24, 16, 192, 2, False),
     "large": (32, 32, 256, 3, False),
     # the small network with one correction step through the forward model: measured about as
-    # accurate for the same training, at 2.5 times the latency (README), so not the default
+    # accurate for the same training, at 2.5 times the latency (docs/strips.md), so not the default
     "corrected": (24, 16, 192, 2, True),
     # the fast one (issue 15's small model): half the crossing channels, one mixing block
     "tiny": (16, 8, 96, 1, False),
@@ -234,7 +234,7 @@ class GeneralStripNet(nn.Module):
         """The classical intersection estimate (kPa) from the normalised product ``Lr Lc / T``:
         through the piezoresistive law's inverse (sizes ``*_law``, shares clamped at
         :data:`MAX_SHARE`), or at the law's small-load slope ``p0 / n`` (the law's nonlinearity is then
-        left to the learned rescaling). Measured on the ood suite: README, strips Pareto section."""
+        left to the learned rescaling). Measured on the ood suite: docs/strips.md, strips Pareto section."""
         share = rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]
         if self.law_base:
             return law_inverse(share, self.p0, self.exponent)

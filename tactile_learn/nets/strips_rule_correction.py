@@ -1,6 +1,6 @@
 """A specialist for one family of shapes: the intersection rule's map, corrected by a small MLP of
 the frame's strip loads. It measures how far an estimator that knows the family can get above the
-rule (issue 12's smooth random field: ``scripts/strips_blob_bound.py``, README "How far above the
+rule (issue 12's smooth random field: ``scripts/strips_blob_bound.py``, docs/strips.md "How far above the
 rule can a smooth field go").
 
 ``map = rule x exp(c) + a x mean(rule)`` with ``(c, a)`` per crossing from an MLP of the loads

@@ -2,7 +2,7 @@
 $TACTILE_THERMAL_ROBOT): label the 9 touches of session R_1, adapt, classify the 81 touches of
 R_2..R_10, and hold the floors: heated + passive >= 98 % at 2 s of contact, heated only >= 90 % at
 4 s (the heated-only floor is held by the press-aligned nearest-touch classifier trained on the 9
-labelled touches: the network adapted on the heated channel alone stays at 0.67, see README). Skipped,
+labelled touches: the network adapted on the heated channel alone stays at 0.67, see docs/thermal-real.md). Skipped,
 saying why, only where the recordings are absent."""
 
 from __future__ import annotations

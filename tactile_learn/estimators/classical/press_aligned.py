@@ -22,7 +22,7 @@ logarithm of that drop (its *size*: wood at room temperature draws little heat),
 multimodal (wood at room temperature and cooled wood share the label ``wood``), so the classifier
 is the nearest labelled touch after standardising each feature (a class mean or a linear rule
 would average the two modes). ``points`` = 9 and ``amplitude_weight`` = 3 were chosen by
-leave-one-out on the 9 labelled touches of R_1 (README, Real thermal recordings). numpy only.
+leave-one-out on the 9 labelled touches of R_1 (docs/thermal-real.md). numpy only.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 robot sensor: the events are placed, refined within their bounds and reported, and the rest of the
 report keeps its shape. The touches have no steps, yet the fit here stays in a local minimum (~12
 sigma, see test_thermal_touch_contact.py) whose bends pass the kink gate: events are placed there
-too, which is why the term stays opt-in (README, contact events)."""
+too, which is why the term stays opt-in (docs/thermal-real.md, contact events)."""
 
 from __future__ import annotations
 
