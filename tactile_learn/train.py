@@ -404,9 +404,13 @@ def _resume_state(run: _Run) -> dict[str, Any]:
     started_with = {**{k: v for k, v in defaults.items() if k not in started_with}, **started_with}
     for name in same_recipe:
         started_with.pop(name, None)
-    if started_with != {k: v for k, v in asdict(config).items() if k not in same_recipe}:
+    now = {k: v for k, v in asdict(config).items() if k not in same_recipe}
+    if started_with != now:
+        differ = sorted(k for k in started_with.keys() | now.keys() if started_with.get(k) != now.get(k))
+        changes = "; ".join(f"{k}: {started_with.get(k)!r} then, {now.get(k)!r} now" for k in differ)
         raise ConfigError(
-            f"{run.checkpoint_path}: the run was started with other settings; resume it with the same command"
+            f"{run.checkpoint_path}: the run was started with other settings ({changes}); "
+            "resume it with the same command"
         )
     assert run.net is not None
     run.net.load_state_dict(ckpt["net"])

@@ -20,7 +20,7 @@ pytest.importorskip("torch", reason="torch (training extra) is not installed: no
 import torch
 
 from synth.dataset import generate
-from synth.errors import DataError, InputError, ModelError
+from synth.errors import ConfigError, DataError, InputError, ModelError
 from synth.scene import load_scene
 from tactile_learn.checkpoints import load_weights as load_run
 from tactile_learn.export import PARITY_TOL, export
@@ -250,3 +250,9 @@ def test_a_validation_set_of_other_physics_is_refused_naming_the_difference(data
         DataError, match=r"differs from the training scene 'strips5' \(validation vs training: noise: False vs True\)"
     ):
         train(dataclasses.replace(_config(data, "run_quiet", epochs=1), val=str(data / "val_quiet")), progress=False)
+
+
+def test_resuming_with_other_settings_names_them(run: Path, data: Path) -> None:
+    changed = dataclasses.replace(_config(data, "run"), lr=0.5, batch_size=32)
+    with pytest.raises(ConfigError, match=r"other settings \(batch_size: 64 then, 32 now; lr: .* then, 0\.5 now\)"):
+        train(changed, resume=True, progress=False)
