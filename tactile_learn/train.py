@@ -113,6 +113,14 @@ class TrainConfig:
         if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
             raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
         self._validate_teacher()
+        if self.val and self.data:
+            folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
+            if Path(self.val).resolve() in {Path(f).resolve() for f in folders}:
+                # early stopping and the recorded validation figures would read frames the network learns
+                raise ConfigError(
+                    f"--val: {self.val} is also a --data folder; validate on frames the network does not train on "
+                    "(generate them with another --seed)"
+                )
         if not (0.0 <= self.r_weight <= 100.0):
             raise ConfigError(f"--r-weight: {self.r_weight} is out of range [0, 100]")
         if self.r_weight != 1.0 and "r_weight" not in inspect.signature(task.loss).parameters:

@@ -118,6 +118,13 @@ def test_train_refuses_zero_epochs(workdir: Path, capsys: pytest.CaptureFixture[
     assert not Path("r").exists()
 
 
+def test_train_refuses_to_validate_on_a_training_folder(workdir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # the same folder as --data and --val validated on the training frames without a word
+    assert main(["train", "--task", "strips", "--data", "d", "e", "--val", "./e", "--out", "r"]) == 2
+    assert "--val: ./e is also a --data folder" in capsys.readouterr().err
+    assert not Path("r").exists()
+
+
 def test_simulate_help_gives_each_lattice_as_the_scene_has_it() -> None:
     # the help showed no capacitive stimulus: a user had to find geometry.lattice_shape in the code
     from synth.scene import load_scene
