@@ -113,14 +113,13 @@ class TrainConfig:
         if self.stream_pixels < 0 or (self.stream_pixels and not self.stream):
             raise ConfigError("--stream-pixels K: a positive pixel count, with --scene and --stream")
         self._validate_teacher()
-        if self.val and self.data:
-            folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
-            if Path(self.val).resolve() in {Path(f).resolve() for f in folders}:
-                # early stopping and the recorded validation figures would read frames the network learns
-                raise ConfigError(
-                    f"--val: {self.val} is also a --data folder; validate on frames the network does not train on "
-                    "(generate them with another --seed)"
-                )
+        training = {Path(f).resolve() for f in self.data_folders} if self.data else set()
+        if self.val and Path(self.val).resolve() in training:
+            # early stopping and the recorded validation figures would read frames the network learns
+            raise ConfigError(
+                f"--val: {self.val} is also a --data folder; validate on frames the network does not train on "
+                "(generate them with another --seed)"
+            )
         if not (0.0 <= self.r_weight <= 100.0):
             raise ConfigError(f"--r-weight: {self.r_weight} is out of range [0, 100]")
         if self.r_weight != 1.0 and "r_weight" not in inspect.signature(task.loss).parameters:
@@ -138,6 +137,11 @@ class TrainConfig:
         if index and int(index) >= torch.cuda.device_count():
             raise ConfigError(f"--device {self.device}: this machine has {torch.cuda.device_count()} CUDA device(s)")
 
+    @property
+    def data_folders(self) -> tuple[str, ...]:
+        """``data`` as a tuple of folders (one folder may be given as a string)."""
+        return (self.data,) if isinstance(self.data, str) else tuple(self.data)
+
     def loss_options(self) -> dict[str, float]:
         """Keyword arguments of the task's loss (none at the defaults: every task's loss takes those)."""
         return {} if self.r_weight == 1.0 else {"r_weight": self.r_weight}
@@ -149,7 +153,7 @@ class TrainConfig:
             return
         if self.stream:
             raise ConfigError("--teacher: distillation reads datasets (--data), not a --stream")
-        folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
+        folders = self.data_folders
         strange = [f for f in self.teacher_data if f not in folders]
         if not self.teacher_data or strange:
             raise ConfigError(
@@ -161,8 +165,7 @@ class TrainConfig:
 
     def taught_parts(self) -> list[int]:
         """Indices (in ``data``'s order) of the folders the teacher teaches: a folder given twice is taught twice."""
-        folders = (self.data,) if isinstance(self.data, str) else tuple(self.data)
-        return [i for i, f in enumerate(folders) if f in self.teacher_data]
+        return [i for i, f in enumerate(self.data_folders) if f in self.teacher_data]
 
 
 def _val_data(config: TrainConfig, train_set: TrainingSet | TouchStream) -> tuple[EvalData, float]:
@@ -313,7 +316,7 @@ def _open_run(config: TrainConfig, rank: int, world: int, resume: bool) -> _Run:
         folders: tuple[str, ...] = ()
         source = str(config.scene)
     else:
-        folders = (config.data,) if isinstance(config.data, str) else tuple(config.data)
+        folders = config.data_folders
         train_set = TrainingSet(folders, task.same_sensor)
         source = ", ".join(folders)
     scene = train_set.scene
