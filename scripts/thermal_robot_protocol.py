@@ -18,6 +18,7 @@ CW cooled wood). The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -31,6 +32,7 @@ from tactile_learn.methods import resolve_method
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks.thermal import ThermalTask
 from tactile_learn.thermal_adapt import CHANNEL_CHOICES, adapt_scene, calibrate_recordings, write_scene
+from tactile_learn.thermal_choice import choice_evaluate, load_adapted, write_choice
 from tactile_learn.thermal_recordings import select_recordings
 
 DURATIONS = (0.5, 1.0, 2.0, 4.0)
@@ -71,39 +73,70 @@ def few_shot(labelled: Path, test: Path, scene: Any, method: str) -> dict[str, A
     return {**_table(metrics), "leave_one_out": metrics["leave_one_out_by_duration"]}
 
 
+def reuse_adapt(folder: Path, labelled: Path) -> dict[str, Any]:
+    """The card of an adapt run already in ``folder``, its classifier choice made again from the
+    labelled touches (the network is unchanged: what adapt does after training is cheap)."""
+    from synth.io import atomic_write_json as write_json
+    from tactile_learn.runtime import card_path, read_card
+
+    model = folder / "model.onnx"
+    network = OnnxEstimator(model).prepare()
+    card = read_card(model)
+    card["classifier"] = write_choice(network, labelled, folder, network.card_scene_)
+    write_json(card_path(model), card)
+    return card
+
+
 def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Namespace) -> dict[str, Any]:
     labelled, test = split(data, labelled_session, work / labelled_session)
     task = ThermalTask()
     out: dict[str, Any] = {"labelled": labelled_session}
     started = time.perf_counter()
-    scene_all, report = calibrate_recordings(labelled, CHANNEL_CHOICES["all"], seed=args.seed)
-    out["calibration_s"] = time.perf_counter() - started
+    reuse = args.reuse and all((work / labelled_session / c / "model.json").is_file() for c in ("heated", "all"))
+    if reuse:  # the calibration adapt wrote beside the networks it trained
+        report = json.loads((work / labelled_session / "all" / "calibration.json").read_text())
+        scene_all = None
+        out["calibration_s"] = float(report["solver"]["seconds"])
+    else:
+        scene_all, report = calibrate_recordings(labelled, CHANNEL_CHOICES["all"], seed=args.seed)
+        out["calibration_s"] = time.perf_counter() - started
     out["calibration"] = {
         "residual": report["residual"],
         "at_bound": report["at_bound"],
         "not_identified": report["not_identified"],
         "parameters": {k: v["value"] for k, v in report["parameters"].items()},
     }
-    write_scene(scene_all, work / labelled_session / "sensor.toml", report)
+    if scene_all is not None:
+        write_scene(scene_all, work / labelled_session / "sensor.toml", report)
     for channels in ("heated", "all"):
         folder = work / labelled_session / channels
         mark = time.perf_counter()
-        card = adapt_scene(
-            scene_all,
-            report,
-            labelled,
-            folder,
-            channels=channels,
-            n_train=args.n_train,
-            epochs=args.epochs,
-            seed=args.seed,
-            threads=args.threads,
-        )
-        seconds = time.perf_counter() - mark + out["calibration_s"]
+        if reuse:
+            # a network this command trained before (same settings): only the steps after it run again
+            card = reuse_adapt(folder, labelled)
+            seconds = float(card["adapt"]["timings_s"]["total_s"])
+        else:
+            assert scene_all is not None
+            card = adapt_scene(
+                scene_all,
+                report,
+                labelled,
+                folder,
+                channels=channels,
+                n_train=args.n_train,
+                epochs=args.epochs,
+                seed=args.seed,
+                threads=args.threads,
+            )
+            seconds = time.perf_counter() - mark + out["calibration_s"]
         model = OnnxEstimator(folder / "model.onnx").prepare()
         scene = model.card_scene_
         data_test = task.load_eval_data(test, scene)
         methods: dict[str, Any] = {}
+        # what a user gets from adapt: the choice in its card (tactile-learn eval --method FOLDER/)
+        network, kept = load_adapted(folder)  # type: ignore[misc]  # adapt always writes a choice
+        chosen = choice_evaluate(task.load_eval_data(kept, scene), data_test, network, DURATIONS, "condition")
+        methods["adapt_choice"] = {**_table(chosen), "choice": chosen["choice_by_duration"]}
         learned = task.evaluate(model, data_test, durations=DURATIONS, group_by="condition")
         methods["learned"] = _table(learned)
         for name in ("curve_match", "physics_fit", "calibrated"):
@@ -119,7 +152,11 @@ def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Na
             "warnings": [w.replace(str(work), "WORK") for w in card["warnings"]],
             "n_test": len(data_test),
         }
-        print(f"{labelled_session} {channels}: learned {methods['learned']['all']} ({seconds:.0f} s)", flush=True)
+        print(
+            f"{labelled_session} {channels}: adapt's choice {methods['adapt_choice']['all']}, "
+            f"network {methods['learned']['all']} ({seconds:.0f} s)",
+            flush=True,
+        )
     return out
 
 
@@ -132,7 +169,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--work", default=None, help="keep the runs here (default: a temporary folder)")
-    parser.add_argument("--json", default=None, help="write the results here")
+    parser.add_argument("--json", default=None, help="write the results here (after every labelled session)")
+    parser.add_argument(
+        "--reuse", action="store_true", help="with --work: keep the networks adapt trained there before (same settings)"
+    )
     args = parser.parse_args(argv)
     data = robot_data(args.data)
     if not (data / "touches.csv").is_file():
@@ -142,14 +182,14 @@ def main(argv: list[str] | None = None) -> int:
         work = Path(args.work) if args.work else Path(tmp)
         for session in args.label.split(","):
             results.append(run_session(data, session.strip(), work, args))
-    summary = {
-        "command": "python scripts/thermal_robot_protocol.py "
-        + " ".join(a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("/")),
-        "durations_s": list(DURATIONS),
-        "sessions": results,
-    }
-    if args.json:
-        atomic_write_json(args.json, summary)
+            summary = {
+                "command": "python scripts/thermal_robot_protocol.py "
+                + " ".join(a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("/")),
+                "durations_s": list(DURATIONS),
+                "sessions": results,
+            }
+            if args.json:  # after every session: a long run interrupted keeps what it measured
+                atomic_write_json(args.json, summary)
     for r in results:
         for channels in ("heated", "all"):
             print(f"\n{r['labelled']} labelled, channels {channels}: accuracy at {', '.join(map(_key, DURATIONS))} s")

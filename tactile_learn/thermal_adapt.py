@@ -5,7 +5,11 @@ export (a workflow above the tasks; nothing below imports it).
 generate a training and a validation set from the calibrated scene, train a small network, evaluate
 it on the labelled real touches themselves (the validation a user can trust: the synthetic set only
 shows the network learnt the simulator), export ONNX with a card holding the calibration report, the
-classes, the channels and the metrics, and warn when the real-touch accuracy is near chance.
+classes, the channels and the metrics, and warn when the real-touch accuracy is near chance. Last,
+the classifier the user gets (:mod:`tactile_learn.thermal_choice`): per duration, the network and
+the classifiers trained on the labelled touches alone, scored on those touches, the best averaged;
+the choice goes into the card and the labelled touches are copied into the folder, so that
+``tactile-learn eval --method OUT/`` classifies with it.
 """
 
 from __future__ import annotations
@@ -105,7 +109,9 @@ def adapt_scene(
     from synth.io import atomic_write_json
     from tactile_learn.export import export
     from tactile_learn.runtime import OnnxEstimator, card_path
-    from tactile_learn.tasks.thermal import ThermalTask
+    from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask
+    from tactile_learn.tasks.thermal_metrics import duration_key
+    from tactile_learn.thermal_choice import write_choice
     from tactile_learn.train import TrainConfig, train
 
     started = time.perf_counter()
@@ -139,18 +145,29 @@ def adapt_scene(
     mark = time.perf_counter()
     card = export(folder / "run", folder / "model.onnx", name=f"adapted_{channels}", test=folder / "val")
     task = ThermalTask()
-    real = task.evaluate(OnnxEstimator(folder / "model.onnx").prepare(), task.load_eval_data(data, scene))
+    network = OnnxEstimator(folder / "model.onnx").prepare()
+    real = task.evaluate(network, task.load_eval_data(data, scene))
     timings["export_s"] = time.perf_counter() - mark
+    mark = time.perf_counter()
+    # what the user classifies with: the candidates the labelled touches support (thermal_choice)
+    classifier = write_choice(network, data, folder, scene)
+    timings["choose_s"] = time.perf_counter() - mark
     k = len(scene.sensor.class_names)
     chance = 1.0 / k
     warnings = []
     if not real["accuracy"] >= chance + NEAR_CHANCE:
         warnings.append(
-            f"accuracy on the labelled touches is {real['accuracy']:.2f}, near chance ({chance:.2f}): the calibrated "
-            "simulator does not explain these touches well enough (see calibration.json: residual, parameters at "
-            "a bound); label more touches, check the labels and the onsets, or classify with a few-shot method "
-            "trained on the labelled touches alone (tactile-learn eval --task thermal --method press_aligned "
-            f"--train {Path(data)} --scene {folder / 'sensor.toml'} --data YOUR_TOUCHES)"
+            f"the network's accuracy on the labelled touches is {real['accuracy']:.2f}, near chance ({chance:.2f}): "
+            "the calibrated simulator does not explain these touches well enough (see calibration.json: residual, "
+            "parameters at a bound); the classifier adapt chose leans on the few-shot classifiers where they do "
+            f"better (card: classifier; tactile-learn eval --task thermal --method {folder} --data YOUR_TOUCHES)"
+        )
+    longest_s = max(DURATIONS_S)
+    best = max(classifier["by_duration"][duration_key(longest_s)]["scores"].values())
+    if not best >= chance + NEAR_CHANCE:
+        warnings.append(
+            f"no candidate classifies the labelled touches better than {best:.2f} at {longest_s:g} s of contact "
+            f"(chance {chance:.2f}): label more touches, check the labels and the onsets"
         )
     if report["residual"]["rms_sigma"] > 3.0:
         warnings.append(
@@ -162,6 +179,7 @@ def adapt_scene(
     card["channels"] = list(scene.sensor.channels)
     card["calibration"] = report
     card["metrics"]["labelled_touches"] = {"data": Path(data).name, "values": real}
+    card["classifier"] = classifier
     card["adapt"] = {"timings_s": timings, "n_train": n_train, "n_val": n_val, "epochs": epochs, "size": size}
     card["warnings"] = warnings
     atomic_write_json(card_path(folder / "model.onnx"), card)

@@ -16,6 +16,7 @@ from tactile_learn.cli.common import positive_int
 from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_evaluate
 from tactile_learn.methods import model_scene, resolve_method
 from tactile_learn.tasks import TASK_NAMES, get_task
+from tactile_learn.thermal_choice import choice_evaluate, load_adapted
 
 HELP = "evaluate a classical method or an ONNX model on a dataset, an .npz or recordings"
 EXAMPLES = """\
@@ -25,7 +26,8 @@ EXAMPLES = """\
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
   tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
-  tactile-learn eval --task thermal --data robot/ --method adapted/model.onnx --durations 0.5,1,2,4 --group-by condition
+  tactile-learn eval --task thermal --data robot/ --method adapted/ --durations 0.5,1,2,4 --group-by condition
+  tactile-learn eval --task thermal --data robot/ --method adapted/model.onnx    # adapt's network alone
   tactile-learn eval --task thermal --data robot/ --method press_aligned --train labelled/ --scene adapted/sensor.toml
 An .npz needs the task's arrays (strips: 'readings' (B, N+M) and 'pressure' (B, N, M)); a dataset
 folder from 'generate' carries its own scene; other data is read with the model's scene (a
@@ -35,7 +37,9 @@ fresh frames of every family are simulated (--n per family, --seed) and the metr
 family and as their mean over families: {"suite", "families": {...}, "mean_over_families": {...}}.
 The thermal few-shot methods (aligned_pca, press_aligned: docs/thermal-real.md) learn
 from the labelled recordings in --train (one model per duration) and add their leave-one-out
-accuracy on them (leave_one_out_by_duration)."""
+accuracy on them (leave_one_out_by_duration). An adapt output folder as --method classifies with
+the classifier adapt chose (its card's 'classifier': the network and the few-shot methods, scored
+on the labelled touches adapt kept, the best averaged; choice_by_duration)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -105,6 +109,10 @@ def run(args: argparse.Namespace) -> int:
         return _run_suite(args)
     task = get_task(args.task)
     scene = load_scene(args.scene) if args.scene else None
+    # an adapt output folder: the classifier adapt chose (thermal_choice), with the card's scene
+    adapted = load_adapted(args.method) if args.task == "thermal" else None
+    if scene is None and adapted is not None:
+        scene = adapted[0].card_scene_
     if scene is None and not (Path(args.data) / MANIFEST).is_file():
         # data without a scene of its own (an .npz, recordings) is read with the model's scene
         scene = model_scene(args.task, args.method)
@@ -118,7 +126,11 @@ def run(args: argparse.Namespace) -> int:
     if options and args.task != "thermal":
         raise ConfigError(f"--durations and --group-by apply to the thermal task, not {args.task!r}")
     start = time.perf_counter()
-    if args.method in FEW_SHOT_METHODS and args.task == "thermal":
+    if adapted is not None:
+        train = task.load_eval_data(args.train or adapted[1], data.scene)
+        metrics = choice_evaluate(train, data, adapted[0], args.durations, args.group_by)
+        name = f"{args.method} (adapt's choice)"
+    elif args.method in FEW_SHOT_METHODS and args.task == "thermal":
         if args.train is None:
             raise ConfigError(f"--method {args.method} learns from labelled touches: give --train LABELLED_DIR")
         train = task.load_eval_data(args.train, data.scene)
