@@ -2,18 +2,24 @@
 
 Why: on real recordings no single classifier holds whichever session is labelled. The network
 trained on the calibrated simulator misses what the simulator does not model (the rig's own
-timing: room-temperature wood called metal when another session is labelled); a classifier
-trained on the labelled touches alone (:mod:`tactile_learn.few_shot`) learns that session's
-presses. Only the labelled touches can say which to trust, so, per duration of contact:
+timing: room-temperature wood called metal when another session is labelled); the calibrated
+physical model fitted touch by touch (``calibrated``) misses other touches; a classifier trained on
+the labelled touches alone (:mod:`tactile_learn.few_shot`) learns that session's presses. Only
+the labelled touches can say which to trust, so, per duration of contact:
 
 - every candidate is scored on the labelled touches: the few-shot classifiers (``press_aligned``,
   ``aligned_pca``) by leave-one-out (each touch classified by a model trained on the others), the
-  network by its accuracy on them (it never trained on them; they only chose its epoch);
-- the classifier is the average of the probabilities of every candidate whose score equals the
-  best. Nine touches score in steps of 1/9, so candidates often tie; where they do the session has
-  no evidence for one over the other, and candidates that fail for different reasons (the
-  simulator's gaps, one session's press timing) are wrong together less often than either alone.
-  Averaging needs no tie-break order, which nothing in one labelled session could justify.
+  network and the calibrated model by their accuracy on them (the network never trained on them,
+  they only chose its epoch; the calibration was fitted to them: both scores lean optimistic);
+- the members are every candidate whose score is within one labelled touch (1/n) of the best: the
+  scores move in steps of 1/n, and one touch is within their noise (with n = 9 and a score of 0.9
+  the binomial standard deviation is 0.1), so the session cannot rank candidates that close;
+- the members vote, one vote each (their probabilities are on unlike scales: a softmax of distances
+  to the nearest touch, a linear discriminant, a network, a fit's likelihood), a tie going to the
+  class of the higher mean probability. The candidates rest on different evidence (the simulator,
+  the physical model's fit, the labelled touches' shapes against clock time and against press
+  time) and fail on different touches, so a majority corrects a single member's mistakes; a
+  candidate the labelled touches show to be worse takes no part.
 
 The choice is written into the adapt card (``classifier``: the scores and the members per
 duration) and redone identically at evaluation (the same labelled touches, copied into the adapt
@@ -34,6 +40,7 @@ import numpy as np
 
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
+from synth.scene import Scene
 from tactile_learn.few_shot import FEW_SHOT_METHODS, _labelled, few_shot_predict, leave_one_out
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask
@@ -45,6 +52,7 @@ __all__ = [
     "CANDIDATES",
     "LABELLED_FOLDER",
     "RULE",
+    "WINDOW_CANDIDATES",
     "candidate_scores",
     "choice_evaluate",
     "choice_predict",
@@ -54,67 +62,88 @@ __all__ = [
     "write_choice",
 ]
 
-#: the network adapt trains, then the few-shot classifiers; the order only fixes how results are listed
-CANDIDATES = ("network", *FEW_SHOT_METHODS)
+#: the network adapt trains, the calibrated model (both read duration windows: :data:`WINDOW_CANDIDATES`),
+#: then the few-shot classifiers; the order only fixes how results are listed
+WINDOW_CANDIDATES = ("network", "calibrated")
+CANDIDATES = (*WINDOW_CANDIDATES, *FEW_SHOT_METHODS)
 #: where adapt keeps a copy of the labelled touches (the few-shot candidates learn from them at eval)
 LABELLED_FOLDER = "labelled"
 #: the rule in words, for the card
 RULE = (
-    "per duration: leave-one-out accuracy on the labelled touches for the few-shot classifiers, accuracy on "
-    "them for the network (never trained on them); the probabilities of every candidate at the best score averaged"
+    "per duration: leave-one-out accuracy on the labelled touches for the few-shot classifiers, accuracy on them "
+    "for the network (never trained on them) and the calibrated model; every candidate within one labelled touch "
+    "of the best score votes, a tie going to the higher mean probability"
 )
 
 
 class Classifier(Protocol):
-    """What the network candidate must offer: class probabilities (N, K [+ 1]) of duration windows."""
+    """What a window candidate offers: class probabilities (N, K [+ 1]) of duration windows."""
 
     def predict_proba(self, x: np.ndarray) -> np.ndarray: ...
 
 
-def _network_proba(network: Classifier, data: EvalData, duration_s: float, k: int) -> np.ndarray:
+def _window_proba(classifier: Classifier, data: EvalData, duration_s: float, k: int) -> np.ndarray:
+    """A window classifier's probabilities (N, K) of the user's classes at ``duration_s``."""
     x, valid = view(data, duration_s)
     if not valid.all():
         raise DataError(f"{data.source}: {int((~valid).sum())} touches end before {duration_s:g} s of contact")
-    proba = np.asarray(network.predict_proba(x), dtype=np.float64)[:, :k]  # its "no contact" column dropped
-    # renormalised over the user's classes; a row the network gives no class at all stays uniform
+    proba = np.asarray(classifier.predict_proba(x), dtype=np.float64)[:, :k]  # its "no contact" column dropped
+    # renormalised over the user's classes; a row given no class at all stays uniform
     total = proba.sum(axis=1, keepdims=True)
     return np.where(total > 0, proba / np.maximum(total, 1e-300), 1.0 / k)
 
 
+def window_candidates(scene: Scene, network: Classifier | None) -> dict[str, Classifier]:
+    """The candidates that read duration windows: the ``network`` (when given) and the calibrated
+    physical model of ``scene`` (the classical ``calibrated`` method)."""
+    out: dict[str, Classifier] = {} if network is None else {"network": network}
+    out["calibrated"] = ThermalTask().classical_methods()["calibrated"](scene)  # type: ignore[assignment]
+    return out
+
+
 def candidate_scores(train: EvalData, network: Classifier | None, duration_s: float) -> dict[str, float]:
-    """Each candidate's score on the labelled touches of ``train`` at ``duration_s`` (module docstring);
-    without a ``network`` the few-shot classifiers alone."""
+    """Each candidate's score on the labelled touches of ``train`` at ``duration_s`` (module
+    docstring); without a ``network`` the others alone."""
     scores = {m: leave_one_out(m, train, duration_s) for m in FEW_SHOT_METHODS}
-    if network is not None:
-        keep = _labelled(train)
-        k = len(train.scene.sensor.class_names)
-        pred = _network_proba(network, train.subset(np.flatnonzero(keep)), duration_s, k).argmax(axis=1)
-        scores["network"] = float(np.mean(pred == train.truth["label"][keep]))
+    keep = _labelled(train)
+    k = len(train.scene.sensor.class_names)
+    labelled = train.subset(np.flatnonzero(keep))
+    for name, classifier in window_candidates(train.scene, network).items():
+        pred = _window_proba(classifier, labelled, duration_s, k).argmax(axis=1)
+        scores[name] = float(np.mean(pred == train.truth["label"][keep]))
     return {m: scores[m] for m in CANDIDATES if m in scores}
 
 
-def choose(scores: dict[str, float]) -> list[str]:
-    """Every candidate whose score equals the best (1e-9: the scores are fractions of one count)."""
+def choose(scores: dict[str, float], n_labelled: int) -> list[str]:
+    """Every candidate whose score is within one of ``n_labelled`` touches of the best (module docstring)."""
     if not scores:
         raise ConfigError("no candidate classifier to choose from")
+    if n_labelled < 1:
+        raise ConfigError(f"choosing a classifier needs labelled touches, got {n_labelled}")
     best = max(scores.values())
-    return [m for m, s in scores.items() if s >= best - 1e-9]
+    return [m for m, s in scores.items() if s >= best - 1.0 / n_labelled - 1e-9]  # 1e-9: fractions of counts
 
 
 def choice_predict(
     members: Sequence[str], train: EvalData, data: EvalData, duration_s: float, network: Classifier | None
 ) -> np.ndarray:
-    """The average of the members' class probabilities (N, K) for the touches of ``data``."""
+    """Class scores (N, K) of the touches of ``data``: the members' votes plus their mean
+    probability (below one vote, so it only breaks ties), normalised to sum to 1."""
     k = len(train.scene.sensor.class_names)
+    if not members:
+        raise ConfigError("the choice has no member")
+    windows = window_candidates(train.scene, network)
     parts = []
     for member in members:
-        if member == "network":
-            if network is None:
-                raise ConfigError("the choice holds the network, but no network was given")
-            parts.append(_network_proba(network, data, duration_s, k))
-        else:
+        if member in FEW_SHOT_METHODS:
             parts.append(few_shot_predict(member, train, data, duration_s))
-    return np.mean(parts, axis=0)
+        elif member in windows:
+            parts.append(_window_proba(windows[member], data, duration_s, k))
+        else:
+            raise ConfigError(f"the choice holds {member!r}, which is not available here (no network given?)")
+    votes = sum(np.eye(k)[p.argmax(axis=1)] for p in parts)
+    score = votes + np.mean(parts, axis=0)
+    return np.asarray(score / score.sum(axis=1, keepdims=True))
 
 
 def choice_evaluate(
@@ -130,9 +159,10 @@ def choice_evaluate(
         raise ConfigError("the labelled touches and the touches to classify are read with different classes")
     durations = tuple(DURATIONS_S if durations is None else durations)
     choice: dict[str, dict[str, Any]] = {}
+    n = int(_labelled(train).sum())
     for d in durations:
         scores = candidate_scores(train, network, d)
-        choice[duration_key(d)] = {"scores": scores, "members": choose(scores)}
+        choice[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
 
     def predict(duration_s: float, windows: np.ndarray, rows: np.ndarray) -> np.ndarray:
         members = choice[duration_key(duration_s)]["members"]
@@ -178,13 +208,14 @@ def write_choice(network: Classifier, labelled: str | Path, folder: str | Path, 
     copy = copy_recordings(labelled, Path(folder) / LABELLED_FOLDER)
     train = ThermalTask().load_eval_data(copy, scene)
     by_duration = {}
+    n = int(_labelled(train).sum())
     for d in DURATIONS_S:
         scores = candidate_scores(train, network, d)
-        by_duration[duration_key(d)] = {"scores": scores, "members": choose(scores)}
+        by_duration[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
     return {
         "rule": RULE,
         "labelled": LABELLED_FOLDER,
-        "n_labelled": int(_labelled(train).sum()),
+        "n_labelled": n,
         "by_duration": by_duration,
     }
 

@@ -15,6 +15,7 @@ from synth.config import replace
 from synth.errors import ConfigError, DataError
 from tactile_learn.few_shot import few_shot_predict, leave_one_out
 from tactile_learn.tasks.thermal import ThermalTask
+from tactile_learn.tasks.thermal_data import view
 from tactile_learn.thermal_choice import (
     candidate_scores,
     choice_evaluate,
@@ -55,13 +56,17 @@ def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     }
 
 
-def test_choose_keeps_every_candidate_at_the_best_score() -> None:
-    assert choose({"network": 1.0, "press_aligned": 1.0, "aligned_pca": 8 / 9}) == ["network", "press_aligned"]
-    assert choose({"network": 0.5, "press_aligned": 7 / 9, "aligned_pca": 2 / 3}) == ["press_aligned"]
-    # equal fractions computed two ways still tie
-    assert choose({"a": 1 - 2 / 9, "b": 7 / 9}) == ["a", "b"]
+def test_choose_keeps_every_candidate_within_one_labelled_touch_of_the_best() -> None:
+    scores = {"network": 1.0, "press_aligned": 8 / 9, "aligned_pca": 7 / 9}
+    assert choose(scores, 9) == ["network", "press_aligned"]
+    assert choose(scores, 4) == ["network", "press_aligned", "aligned_pca"]  # one touch in 4 is 0.25
+    assert choose({"network": 0.5, "press_aligned": 1.0, "aligned_pca": 2 / 3}, 9) == ["press_aligned"]
+    # a difference of exactly one touch, computed two ways, is within it
+    assert choose({"a": 1 - 2 / 9, "b": 6 / 9}, 9) == ["a", "b"]
     with pytest.raises(ConfigError, match="no candidate"):
-        choose({})
+        choose({}, 9)
+    with pytest.raises(ConfigError, match="labelled touches"):
+        choose(scores, 0)
 
 
 def test_candidate_scores_are_leave_one_out_and_the_network_on_the_labelled_touches(
@@ -71,44 +76,52 @@ def test_candidate_scores_are_leave_one_out_and_the_network_on_the_labelled_touc
     labels = train.truth["label"]  # type: ignore[attr-defined]
     always_metal = ConstantNetwork([0.9, 0.1, 0.0])  # class 0 is metal
     scores = candidate_scores(train, always_metal, 4.0)  # type: ignore[arg-type]
-    assert list(scores) == ["network", "aligned_pca", "press_aligned"]
+    assert list(scores) == ["network", "calibrated", "aligned_pca", "press_aligned"]
     assert scores["network"] == pytest.approx(np.mean(labels == 0))
     for method in ("aligned_pca", "press_aligned"):
         assert scores[method] == pytest.approx(leave_one_out(method, train, 4.0))  # type: ignore[arg-type]
-    assert set(candidate_scores(train, None, 4.0)) == {"aligned_pca", "press_aligned"}  # type: ignore[arg-type]
+    # the calibrated model: the classical method's own answers on the labelled touches
+    calibrated = TASK.classical_methods()["calibrated"](train.scene)  # type: ignore[attr-defined]
+    x, _ = view(train, 4.0)  # type: ignore[arg-type]
+    right = calibrated.predict_proba(x)[:, :2].argmax(axis=1) == labels  # type: ignore[attr-defined]
+    assert scores["calibrated"] == pytest.approx(right.mean())
+    assert set(candidate_scores(train, None, 4.0)) == {"calibrated", "aligned_pca", "press_aligned"}  # type: ignore[arg-type]
 
 
-def test_choice_predict_averages_its_members(recordings: dict[str, object]) -> None:
+def test_choice_predict_is_a_vote_with_ties_to_the_mean_probability(recordings: dict[str, object]) -> None:
     train, test = recordings["train"], recordings["test"]
-    network = ConstantNetwork([0.6, 0.2, 0.2])  # its "no contact" column is dropped, the rest renormalised
-    alone = choice_predict(["network"], train, test, 2.0, network)  # type: ignore[arg-type]
-    np.testing.assert_allclose(alone, np.tile([0.75, 0.25], (len(alone), 1)))
-    few = few_shot_predict("press_aligned", train, test, 2.0)  # type: ignore[arg-type]
-    both = choice_predict(["network", "press_aligned"], train, test, 2.0, network)  # type: ignore[arg-type]
-    np.testing.assert_allclose(both, 0.5 * (alone + few))
-    np.testing.assert_allclose(both.sum(axis=1), 1.0)
-    with pytest.raises(ConfigError, match="no network"):
+    metal = ConstantNetwork([0.6, 0.2, 0.2])  # its "no contact" column is dropped, the rest renormalised
+    alone = choice_predict(["network"], train, test, 2.0, metal)  # type: ignore[arg-type]
+    assert (alone.argmax(axis=1) == 0).all()
+    np.testing.assert_allclose(alone, np.tile([(1 + 0.75) / 2, 0.25 / 2], (len(alone), 1)))
+    few = {m: few_shot_predict(m, train, test, 2.0) for m in ("press_aligned", "aligned_pca")}  # type: ignore[arg-type]
+    # three members: the majority of their answers, whatever the confidence of the one outvoted
+    sure_wood = ConstantNetwork([0.0, 1.0, 0.0])
+    three = choice_predict(["network", "press_aligned", "aligned_pca"], train, test, 2.0, sure_wood)  # type: ignore[arg-type]
+    votes = 1 + sum((p.argmax(axis=1) == 1).astype(int) for p in few.values())  # votes for wood (class 1)
+    np.testing.assert_array_equal(three.argmax(axis=1), (votes >= 2).astype(int))
+    np.testing.assert_allclose(three.sum(axis=1), 1.0)
+    # two members that disagree: the class of the higher mean probability
+    two = choice_predict(["network", "press_aligned"], train, test, 2.0, metal)  # type: ignore[arg-type]
+    mean = 0.5 * (np.tile([0.75, 0.25], (len(alone), 1)) + few["press_aligned"])
+    np.testing.assert_array_equal(two.argmax(axis=1), mean.argmax(axis=1))
+    with pytest.raises(ConfigError, match="not available"):
         choice_predict(["network"], train, test, 2.0, None)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="no member"):
+        choice_predict([], train, test, 2.0, None)  # type: ignore[arg-type]
 
 
 def test_choice_evaluate_follows_the_labelled_touches(recordings: dict[str, object]) -> None:
-    """A network that always answers one class scores the share of that class on the labelled
-    touches: below the few-shot classifiers, it is left out, and the choice classifies the test
-    touches like the few-shot member(s) alone."""
+    """The metrics are those of the members the labelled touches chose, per duration."""
     train, test = recordings["train"], recordings["test"]
     network = ConstantNetwork([0.9, 0.1, 0.0])
     metrics = choice_evaluate(train, test, network, (1.0, 4.0), "condition")  # type: ignore[arg-type]
     for key in ("1.0", "4.0"):
         choice = metrics["choice_by_duration"][key]
-        assert choice["members"] == choose(choice["scores"])
-        if "network" not in choice["members"]:
-            d = float(key)
-            proba = np.mean(
-                [few_shot_predict(m, train, test, d) for m in choice["members"]],  # type: ignore[arg-type]
-                axis=0,
-            )
-            expected = float(np.mean(proba.argmax(axis=1) == test.truth["label"]))  # type: ignore[attr-defined]
-            assert metrics["accuracy_by_duration"][key] == pytest.approx(expected)
+        assert choice["members"] == choose(choice["scores"], 9)
+        proba = choice_predict(choice["members"], train, test, float(key), network)  # type: ignore[arg-type]
+        expected = float(np.mean(proba.argmax(axis=1) == test.truth["label"]))  # type: ignore[attr-defined]
+        assert metrics["accuracy_by_duration"][key] == pytest.approx(expected)
     assert set(metrics["by_group"]) == {"cold", "room"}
     assert network.calls > 0
 
@@ -152,8 +165,8 @@ def test_adapt_writes_its_choice_and_eval_classifies_with_the_folder(tmp_path: P
     choice = card["classifier"]
     assert choice["n_labelled"] == 6 and set(choice["by_duration"]) == {"0.25", "0.5", "1.0", "2.0", "4.0"}
     for entry in choice["by_duration"].values():
-        assert set(entry["scores"]) == {"network", "aligned_pca", "press_aligned"}
-        assert entry["members"] == choose(entry["scores"])
+        assert set(entry["scores"]) == {"network", "calibrated", "aligned_pca", "press_aligned"}
+        assert entry["members"] == choose(entry["scores"], 6)
     assert (out / choice["labelled"] / "touches.csv").is_file()
     shutil.rmtree(tmp_path / "rec")  # the folder carries what the choice needs
     evaluate = ["eval", "--task", "thermal", "--data", str(tmp_path / "more"), "--durations", "1,4"]
