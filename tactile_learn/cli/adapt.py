@@ -12,13 +12,17 @@ HELP = "calibrate a real thermal sensor from labelled touches, train a classifie
 EXAMPLES = """\
   tactile-learn adapt --task thermal --data my_touches/ --channels all --out adapted/
   tactile-learn adapt --task thermal --data my_touches/ --channels heated --classes my_classes.toml --out adapted/
-  tactile-learn eval --task thermal --data more_touches/ --method adapted/model.onnx --group-by condition
+  tactile-learn eval --task thermal --data more_touches/ --method adapted/ --group-by condition
 my_touches/ holds touches.csv (file,material[,onset_s][,...]) and one CSV per touch
 (time_s,temperature_c[,passive_c][,force]); labels are materials, families (metal, wood, ...) or
 your classes (--classes FILE.toml, see 'tactile-learn materials --help'). --channels heated: the
 classifier reads the heated thermistor only; all: heated and passive. The output folder holds the
 calibrated scene (sensor.toml), the calibration report (calibration.json), the synthetic datasets,
-the training run, and model.onnx with its card (model.json)."""
+the training run, model.onnx with its card (model.json) and a copy of the labelled touches
+(labelled/). What you classify with is adapt's choice (eval --method adapted/): per duration of
+contact, the network, the calibrated model and two classifiers trained on your labelled touches
+alone are scored on those touches, and those within one touch of the best vote (the card's
+'classifier'); adapted/model.onnx is the network alone."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
         "channels": card["channels"],
         "calibration_residual": card["calibration"]["residual"],
         "labelled_touches_accuracy_by_duration": card["metrics"]["labelled_touches"]["values"]["accuracy_by_duration"],
+        "classifier_by_duration": {
+            d: {"members": c["members"], "best_score": max(c["scores"].values())}
+            for d, c in card["classifier"]["by_duration"].items()
+        },
+        "classify_with": f"tactile-learn eval --task thermal --method {args.out} --data YOUR_TOUCHES",
         "timings_s": card["adapt"]["timings_s"],
     }
     print(json_dumps(summary))
