@@ -109,8 +109,7 @@ def adapt_scene(
     from synth.io import atomic_write_json
     from tactile_learn.export import export
     from tactile_learn.runtime import OnnxEstimator, card_path
-    from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask
-    from tactile_learn.tasks.thermal_metrics import duration_key
+    from tactile_learn.tasks.thermal import ThermalTask
     from tactile_learn.thermal_choice import write_choice
     from tactile_learn.train import TrainConfig, train
 
@@ -162,8 +161,9 @@ def adapt_scene(
             "parameters at a bound); the classifier adapt chose leans on the few-shot classifiers where they do "
             f"better (card: classifier; tactile-learn eval --task thermal --method {folder} --data YOUR_TOUCHES)"
         )
-    longest_s = max(DURATIONS_S)
-    best = max(classifier["by_duration"][duration_key(longest_s)]["scores"].values())
+    longest = max(classifier["by_duration"], key=float)  # the longest contact the labelled records reach
+    longest_s = float(longest)
+    best = max(classifier["by_duration"][longest]["scores"].values())
     if not best >= chance + NEAR_CHANCE:
         warnings.append(
             f"no candidate classifies the labelled touches better than {best:.2f} at {longest_s:g} s of contact "

@@ -204,12 +204,17 @@ def copy_recordings(source: str | Path, target: str | Path) -> Path:
 
 def write_choice(network: Classifier, labelled: str | Path, folder: str | Path, scene: Any) -> dict[str, Any]:
     """``adapt``'s last step: copy the labelled touches into ``folder``/labelled and return the card's
-    ``classifier`` section (the rule, and per duration of :data:`DURATIONS_S` the scores and members)."""
+    ``classifier`` section (the rule, and per duration of :data:`DURATIONS_S` that every labelled
+    touch's record reaches, the scores and members)."""
     copy = copy_recordings(labelled, Path(folder) / LABELLED_FOLDER)
     train = ThermalTask().load_eval_data(copy, scene)
+    keep = _labelled(train)
+    reached = [d for d in DURATIONS_S if view(train, d)[1][keep].all()]
+    if not reached:
+        raise DataError(f"{labelled}: no labelled touch's record reaches {min(DURATIONS_S):g} s after its onset")
     by_duration = {}
-    n = int(_labelled(train).sum())
-    for d in DURATIONS_S:
+    n = int(keep.sum())
+    for d in reached:
         scores = candidate_scores(train, network, d)
         by_duration[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
     return {

@@ -23,6 +23,7 @@ from tactile_learn.thermal_choice import (
     choose,
     copy_recordings,
     load_adapted,
+    write_choice,
 )
 from tactile_learn.thermal_recordings import write_recordings
 from tests.tactile_learn.test_thermal_real import robot_scene, robot_touches
@@ -183,3 +184,21 @@ def test_adapt_writes_its_choice_and_eval_classifies_with_the_folder(tmp_path: P
     (out / "model.json").write_text(json.dumps(card))
     with pytest.raises(ConfigError, match="no classifier choice"):
         load_adapted(out)
+
+
+def test_write_choice_keeps_the_durations_the_labelled_records_reach(tmp_path: Path) -> None:
+    """Records cut 4.5 s after their start (onsets near 3 s): none reaches 2 s of contact, so the card
+    holds only the shorter durations (adapt does not fail after training)."""
+    short = []
+    for touch in robot_touches(6, 31):
+        end = int(np.searchsorted(touch.time_s, 4.5))
+        cut = {k: getattr(touch, k)[:end] for k in ("time_s", "temperature_c", "passive_c", "force")}
+        short.append(dataclasses.replace(touch, **cut))
+    write_recordings(tmp_path / "short", short)
+    scene = robot_scene()
+    heated = dataclasses.replace(scene, sensor=replace(scene.sensor, "channels", ["heated"]))  # type: ignore[arg-type]
+    choice = write_choice(ConstantNetwork([0.5, 0.5, 0.0]), tmp_path / "short", tmp_path / "out", heated)
+    reached = set(choice["by_duration"])
+    assert reached and "4.0" not in reached and "2.0" not in reached
+    assert reached <= {"0.25", "0.5", "1.0"}
+    assert (tmp_path / "out" / "labelled" / "touches.csv").is_file()
