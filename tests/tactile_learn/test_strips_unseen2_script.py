@@ -55,3 +55,19 @@ def test_object_probes_set_the_object_and_their_fixed_settings() -> None:
         assert stimuli.count == (fixed["count"], fixed["count"]) and stimuli.kinds == original.kinds
     tilts = parse_suite(strips_unseen_probe.probe_suite("coin_tilt"), "probe").families
     assert [f.scene.sensor.stimuli.kinds[0].tilt for f in tilts] == [(v, v) for v in (0.0, 0.25, 0.5, 0.75, 1.0)]
+
+
+def test_near_l_share_counts_ls_of_shared_rows_and_columns() -> None:
+    """Three studs square to the strips (within 5 degrees: 0.7 mm off over an 8 mm arm) are an L in
+    every frame; two studs never are; turned 45 degrees, three studs are a diamond's corner, no L."""
+    data, _ = read_toml("strips16_unseen2", "suites", "suite")
+    square = next(f for f in data["families"] if f["name"] == "lego_2x2_square")
+
+    def share(count: int, rotation: float) -> float:
+        fam = {**square, "strips": {"stimuli": {**square["strips"]["stimuli"], "count": [count, count]}}}
+        fam["strips"]["stimuli"]["object"] = {**square["strips"]["stimuli"]["object"], "rotation_deg": [rotation] * 2}
+        scene = parse_suite({**data, "families": [fam]}, "one").families[0].scene
+        return strips_unseen_probe.near_l_share(scene, 200, seed=1)
+
+    assert share(3, 5.0) == 1.0 and share(4, 0.0) == 1.0
+    assert share(2, 0.0) == 0.0 and share(3, 45.0) == 0.0
