@@ -108,3 +108,18 @@ def test_punch_off_its_centre_carries_its_force_and_moment() -> None:
         across = (pushed * (-x * np.sin(theta) + y * np.cos(theta))).sum() / pushed.sum()
         assert shift == pytest.approx(tilt * a / 3, rel=0.06), (tilt, angle)
         assert abs(across) < 0.02
+
+
+def test_a_scene_with_an_object_round_trips_through_its_dict_and_toml() -> None:
+    """Datasets store their scene (and resume against it): the object survives both."""
+    import tomllib
+
+    from synth.config import dumps_toml
+    from synth.suite import load_suite
+
+    scene = load_suite("strips16_unseen2").family("thumb_and_fingertips").scene
+    data = scene.to_dict()
+    assert data["strips"]["stimuli"]["object"]["part_kinds"] is True
+    assert parse_scene(data, "dict") == scene
+    assert parse_scene(tomllib.loads(dumps_toml(data)), "toml") == scene
+    assert parse_scene(tomllib.loads(dumps_toml(data)), "toml").digest == scene.digest
