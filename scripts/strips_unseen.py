@@ -28,7 +28,7 @@ from synth.suite import Suite, load_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.runtime import OnnxEstimator
-from tactile_learn.strips_guard import CheckedStripModel
+from tactile_learn.strips_guard import CHECK_OUTPUTS, CheckedStripModel
 from tactile_learn.suites import suite_eval_data
 from tactile_learn.tasks import get_task
 from tactile_learn.tasks.base import EvalData
@@ -44,8 +44,11 @@ def _mean(values: np.ndarray) -> float:
     return float(finite.mean()) if finite.size else float("nan")
 
 
-def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str, CheckedStripModel]) -> dict[str, Any]:
-    """One family at one seed: every method's r/NRMSE, each model's margin and flag figures."""
+def family_result(
+    data: EvalData, estimators: dict[str, Any], checked: dict[str, CheckedStripModel], models: list[str]
+) -> dict[str, Any]:
+    """One family at one seed: every method's r/NRMSE, each model's margin and, for the models with
+    a readings residual (``checked``), the flag's figures."""
     task = get_task("strips")
     truth = data.truth["pressure"]
     methods: dict[str, dict[str, float]] = {}
@@ -57,14 +60,19 @@ def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str,
         frame_r[name] = pearson_per_frame(pred, truth)
     best_name = max(CLASSICAL, key=lambda c: methods[c]["r"])
     best_frame = np.fmax(frame_r[CLASSICAL[0]], frame_r[CLASSICAL[1]])
-    models: dict[str, dict[str, float]] = {}
-    for name, guard in checked.items():
+    results: dict[str, dict[str, float]] = {}
+    for name in models:
+        losing = frame_r[name] < best_frame - LOSS_MARGIN
+        margin = methods[name]["r"] - methods[best_name]["r"]
+        if name not in checked:  # no residual outputs: no flag to measure
+            results[name] = {"margin": margin, "losing_share": float(losing.mean())}
+            continue
+        guard = checked[name]
         out = guard.check(data.inputs)
         flagged = out["flagged"]
-        losing = frame_r[name] < best_frame - LOSS_MARGIN
         guarded = task.metrics(out["pressure"], data)
-        models[name] = {
-            "margin": methods[name]["r"] - methods[best_name]["r"],
+        results[name] = {
+            "margin": margin,
             "flagged_share": float(flagged.mean()),
             "losing_share": float(losing.mean()),
             "losing_flagged_share": float(flagged[losing].mean()) if losing.any() else float("nan"),
@@ -81,7 +89,7 @@ def family_result(data: EvalData, estimators: dict[str, Any], checked: dict[str,
             # a residual threshold here would flag half of the losing frames
             "losing_residual_median": float(np.median(out["residual"][losing])) if losing.any() else float("nan"),
         }
-    return {"frames": len(truth), "best_classical": best_name, "methods": methods, "models": models}
+    return {"frames": len(truth), "best_classical": best_name, "methods": methods, "models": results}
 
 
 def evaluate(
@@ -95,13 +103,16 @@ def evaluate(
     for name in models:
         model = estimators[name]
         if not isinstance(model, OnnxEstimator):
-            raise SystemExit(f"{name}: not an ONNX strip model (the flag needs its residual outputs)")
-        checked[name] = CheckedStripModel(model, fallback="intersection").prepare()
+            raise SystemExit(f"{name}: not an ONNX strip model")
+        if set(CHECK_OUTPUTS) <= {o["name"] for o in model.card_["outputs"]}:
+            checked[name] = CheckedStripModel(model, fallback="intersection").prepare()
+        else:
+            log(f"{name}: no readings-residual outputs; r and NRMSE only")
     per_seed: dict[str, dict[str, Any]] = {}
     for seed in seeds:
         start = time.perf_counter()
         data = suite_eval_data(suite, n, seed)
-        per_seed[str(seed)] = {fam: family_result(frames, estimators, checked) for fam, frames in data.items()}
+        per_seed[str(seed)] = {fam: family_result(frames, estimators, checked, models) for fam, frames in data.items()}
         log(f"seed {seed}: {len(data)} families x {n} frames in {time.perf_counter() - start:.0f} s")
     families: dict[str, dict[str, Any]] = {}
     for fam in suite.families:
@@ -119,7 +130,7 @@ def evaluate(
             "margin_per_seed": {m: [row["models"][m]["margin"] for row in rows] for m in models},
         }
     if test is not None:
-        for m in models:
+        for m in checked:
             in_family = checked[m].check(test.inputs)["residual"]
             for fam_result in families.values():
                 limit = fam_result["models"][m]["losing_residual_median"]
@@ -141,7 +152,7 @@ def evaluate(
         "seeds": seeds,
         "frames_per_family": n,
         "loss_margin": LOSS_MARGIN,
-        "thresholds": {m: checked[m].thresholds_ for m in models},
+        "thresholds": {m: checked[m].thresholds_ for m in checked},
         "test": None if test is None else test.source,
         "summary": summary,
         "families": families,
@@ -182,6 +193,7 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
             f"- `{m}` below the best classical rule at every seed: {', '.join(s['families_below_classical']) or 'none'}"
             f"; at some seeds: {', '.join(s['families_mixed']) or 'none'}."
         )
+    flagging = [m for m in models if m in result["thresholds"]]  # the models with a readings residual
     lines += [
         "",
         "The readings-residual flag (card thresholds), mean of the seeds: flagged, the share of frames above a "
@@ -194,10 +206,10 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
         "",
         "| family | "
         + " | ".join(
-            f"{m}: flagged, losing, losing flagged, p90 / threshold, guarded, half caught costs" for m in models
+            f"{m}: flagged, losing, losing flagged, p90 / threshold, guarded, half caught costs" for m in flagging
         )
         + " |",
-        "|---|" + "---:|" * len(models),
+        "|---|" + "---:|" * len(flagging),
     ]
 
     def pct(value: float) -> str:
@@ -205,7 +217,7 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
 
     for name, fam in families.items():
         cells = []
-        for m in models:
+        for m in flagging:
             f = fam["models"][m]
             ratio = f["losing_residual_over_threshold_p90"]
             cost = pct(f.get("test_flagged_at_losing_median", float("nan")))

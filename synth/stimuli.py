@@ -6,7 +6,10 @@ Kinds (all forces in N, lengths in mm, pressures in kPa):
   ``p(r) = p0 sqrt(1 - r^2/a^2)``, ``p0 = 3 F / (2 pi a^2)``;
 - ``punch``: rigid flat round punch of radius ``radius_mm`` (Boussinesq):
   ``p(r) = F / (2 pi a sqrt(a^2 - r^2))``; the edge singularity is clamped at ``r = 0.999 a`` (its
-  integrable tail is restored by the force normalisation below);
+  integrable tail is restored by the force normalisation below); ``tilt`` in [-1, 1] adds a moment
+  ``M`` about the axis across ``angle_deg`` (a coin pushed off its centre), still in full contact:
+  ``p = F (1 + tilt * s / a) / (2 pi a sqrt(a^2 - r^2))`` with ``tilt = 3 M / (F a)`` (``s`` along
+  ``angle_deg`` from the centre); at ``|tilt| = 1`` the far rim is about to lift;
 - ``block``: flat rectangular block ``width_mm x length_mm`` rotated by ``angle_deg`` (its length
   along that angle), pressure ``F / (w l)`` (a compliant pad; a rigid block's edge peaks are not
   modelled); ``tilt`` in [-1, 1] makes it a *tilted block*, pressed a little askew: the pressure
@@ -192,7 +195,13 @@ def _shape(kind: str, dx: np.ndarray, dy: np.ndarray, c: ContactBatch, e_star_mp
         inside = r2 < a * a
         # clamp the integrable edge singularity; normalisation restores the total force
         gap = np.maximum(a * a - r2, (0.045 * a) ** 2)
-        return np.where(inside, 1.0 / np.sqrt(gap), 0.0)
+        tilts = c.tilts()
+        if not tilts.any():  # untilted punches: the arithmetic they always had
+            return np.where(inside, 1.0 / np.sqrt(gap), 0.0)
+        theta = np.deg2rad(c.angle_deg)[col]
+        # |tilt| <= 1 (validated) keeps the profile non-negative inside the disc; the clip guards rounding
+        moment = np.maximum(1.0 + tilts[col] * (dx * np.cos(theta) + dy * np.sin(theta)) / a, 0.0)
+        return np.where(inside, moment / np.sqrt(gap), 0.0)
     if kind == "blob":
         return _blob(dx, dy, c)
     if kind == "ring":

@@ -71,7 +71,7 @@ def test_margins_losses_and_flags_follow_their_definitions() -> None:
 def test_probe_ladders_set_one_parameter_and_keep_the_rest() -> None:
     data = strips_unseen_probe.probe_suite("punch_radius")
     suite = parse_suite(data, "probe")
-    family, parameter, values = strips_unseen_probe.PROBES["punch_radius"]
+    _, family, parameter, values, _ = strips_unseen_probe.PROBES["punch_radius"]
     assert len(suite.families) == len(values)
     original = _two_families().family(family).scene.sensor.stimuli
     for fam, value in zip(suite.families, values, strict=True):

@@ -15,6 +15,7 @@ from synth.scene import Scene
 from synth.sensors.model import ModelSimulator
 from synth.sensors.strips.config import (
     DRAWN_PARAMS,
+    ContactObject,
     CoverLayer,
     Holdout,
     Piezoresistive,
@@ -39,6 +40,7 @@ __all__ = [
     "OUTPUTS",
     "Adc",
     "ContactGenerator",
+    "ContactObject",
     "CoverLayer",
     "GaussianNoise",
     "Holdout",

@@ -14,6 +14,7 @@ from synth.sensors.strips.layouts import StripGeometry, StripLayout
 
 __all__ = [
     "DRAWN_PARAMS",
+    "ContactObject",
     "CoverLayer",
     "Holdout",
     "Piezoresistive",
@@ -111,7 +112,7 @@ class StimulusKind:
     the ring terminal's outer radius, or the reach of a blob's bumps; ``width_mm`` applies to blocks,
     to a terminal's tongue and is a blob's correlation length; ``length_mm`` to blocks, edges and a
     terminal's tongue; ``angle_deg`` to blocks, edges and terminals; ``hole_fraction`` to rings and
-    terminals; ``tilt`` to blocks.
+    terminals; ``tilt`` to blocks and punches.
     """
 
     kind: Literal["sphere", "punch", "block", "edge", "ring", "terminal", "blob"] = "sphere"
@@ -177,6 +178,30 @@ def draw_except(u: np.ndarray, lo: float, hi: float, holes: list[tuple[float, fl
 
 
 @dataclass(frozen=True)
+class ContactObject:
+    """One rigid object whose parts are a frame's contacts (a brick's studs, a fork's tines, a hand's
+    fingertips in a row): part ``j`` (the frame's ``j``-th contact) lies ``offsets_mm[j]`` (x, y) from the
+    object's centre, the offsets scaled by ``scale`` and turned by ``rotation_deg`` (both drawn per frame,
+    uniformly); the rotation turns every part's own ``angle_deg`` with it. The centre is drawn so that every
+    part's centre lies inside the array shrunk by ``margin_mm``. With ``part_kinds``, part ``j`` is drawn
+    from ``kinds[j]`` (one entry per part: a pad and fingertips) instead of by the kinds' weights."""
+
+    offsets_mm: tuple[tuple[float, float], ...] = param(((0.0, 0.0),), lo=-100.0, hi=100.0, unit="mm")
+    rotation_deg: tuple[float, float] = param((0.0, 0.0), lo=-360.0, hi=360.0, unit="deg", ordered=True)
+    scale: tuple[float, float] = param((1.0, 1.0), lo=0.0, lo_open=True, hi=100.0, ordered=True)
+    part_kinds: bool = param(False, doc="part j takes kinds[j] instead of a weighted draw")
+
+    def __post_init__(self) -> None:
+        if not self.offsets_mm:
+            raise ConfigError("stimuli.object.offsets_mm: at least one part is needed")
+
+    @property
+    def reach_mm(self) -> float:
+        """The farthest any part's centre lies from the object's centre, at the largest scale."""
+        return max(float(np.hypot(x, y)) for x, y in self.offsets_mm) * self.scale[1]
+
+
+@dataclass(frozen=True)
 class StripStimuli:
     """How many contacts a frame has and where: centres uniform over the array shrunk by
     ``margin_mm`` on every side (negative: centres may fall outside the array)."""
@@ -198,10 +223,21 @@ class StripStimuli:
         doc="share of multi-contact frames whose contacts are identical (ghost-ambiguous)",
     )
     kinds: tuple[StimulusKind, ...] = (StimulusKind(),)
+    object: ContactObject | None = param(
+        None, omit_default=True, doc="the contacts are parts of one object (default: independent centres)"
+    )
 
     def __post_init__(self) -> None:
         if not self.kinds:
             raise ConfigError("stimuli.kinds: at least one stimulus kind is needed")
+        if self.object is not None:
+            parts = len(self.object.offsets_mm)
+            if self.count[1] > parts:
+                raise ConfigError(f"stimuli.count: up to {self.count[1]} contacts, but the object has {parts} parts")
+            if self.object.part_kinds and len(self.kinds) != parts:
+                raise ConfigError(
+                    f"stimuli.object.part_kinds: one kind per part is needed ({parts} parts, {len(self.kinds)} kinds)"
+                )
         n_counts = self.count[1] - self.count[0] + 1
         if self.count_weights and (len(self.count_weights) != n_counts or sum(self.count_weights) <= 0):
             raise ConfigError(
@@ -228,6 +264,14 @@ class StripsConfig:
             raise ConfigError(
                 f"stimuli.margin_mm: {self.stimuli.margin_mm} mm leaves no room for contacts on a "
                 f"{g.n_rows * g.pitch_mm} x {g.n_cols * g.pitch_mm} mm array"
+            )
+        obj = self.stimuli.object
+        # at any rotation the parts must fit inside the margin, or no centre could be drawn for them
+        if obj is not None and 2 * obj.reach_mm > min(g.n_rows, g.n_cols) * g.pitch_mm - 2 * self.stimuli.margin_mm:
+            raise ConfigError(
+                f"stimuli.object: its parts reach {obj.reach_mm:g} mm from its centre; they do not fit on a "
+                f"{g.n_rows * g.pitch_mm} x {g.n_cols * g.pitch_mm} mm array with a margin of "
+                f"{self.stimuli.margin_mm} mm"
             )
 
 

@@ -22,7 +22,7 @@ from synth.errors import InputError
 from synth.sensors.arrays import optional, take
 from synth.sensors.base import ArraySpec
 from synth.sensors.model import StimulusGenerator
-from synth.sensors.strips.config import DRAWN_PARAMS, StripsConfig, draw_except
+from synth.sensors.strips.config import DRAWN_PARAMS, ContactObject, StripsConfig, draw_except
 from synth.sensors.strips.layouts import StripLayout
 from synth.stimuli import DETAIL, KINDS, ContactBatch, Windows, rasterize, window_cells, window_size
 
@@ -187,6 +187,8 @@ class ContactGenerator(StimulusGenerator[StripContacts]):
         x = st.margin_mm + u[..., 0] * (width_x - 2 * st.margin_mm)
         y = st.margin_mm + u[..., 1] * (width_y - 2 * st.margin_mm)
 
+        if st.object is not None and st.object.part_kinds:
+            spec_index[:] = np.arange(k)  # part j is kinds[j]; the weighted draw above keeps the stream
         twin = (count >= 2) & (rng.random(n) < st.twin_fraction)
         # the shape library's extra parameters are drawn after everything the first four kinds use
         extra = rng.random((n, k, 2 + DETAIL)) if self.shaped else np.zeros((n, k, 2 + DETAIL))
@@ -206,6 +208,8 @@ class ContactGenerator(StimulusGenerator[StripContacts]):
             spec_index[twin] = spec_index[twin, :1]
             for value in params.values():
                 value[twin] = value[twin, :1]
+        if st.object is not None:  # drawn after everything else: scenes without an object keep their stream
+            x, y = self._place_object(st.object, params["angle_deg"], rng)
         present = np.arange(k)[None, :] < count[:, None]
         kind_code = np.array([KINDS.index(s.kind) for s in st.kinds])[spec_index]
         return {
@@ -218,6 +222,32 @@ class ContactGenerator(StimulusGenerator[StripContacts]):
             "twin": twin,
             **params,
         }
+
+    def _place_object(
+        self, obj: ContactObject, angle_deg: np.ndarray, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Centres (x, y) of the parts of one object per frame (:class:`ContactObject`); turns each
+        part's ``angle_deg`` (in place) with the object."""
+        st, g = self.config.stimuli, self.config.geometry
+        n, k = angle_deg.shape
+        u = rng.random((n, 4))
+        rotation = obj.rotation_deg[0] + u[:, 0] * (obj.rotation_deg[1] - obj.rotation_deg[0])
+        scale = obj.scale[0] + u[:, 1] * (obj.scale[1] - obj.scale[0])
+        offsets = np.asarray(obj.offsets_mm[:k], dtype=np.float64)
+        theta = np.deg2rad(rotation)[:, None]
+        ox = scale[:, None] * (offsets[None, :, 0] * np.cos(theta) - offsets[None, :, 1] * np.sin(theta))
+        oy = scale[:, None] * (offsets[None, :, 0] * np.sin(theta) + offsets[None, :, 1] * np.cos(theta))
+        angle_deg += rotation[:, None]
+
+        def centre(v: np.ndarray, offset: np.ndarray, side_mm: float) -> np.ndarray:
+            # every part inside [margin, side - margin]; the config checks that the parts fit
+            lo = st.margin_mm - offset.min(axis=1)
+            hi = side_mm - st.margin_mm - offset.max(axis=1)
+            return lo + v * np.maximum(hi - lo, 0.0)
+
+        cx = centre(u[:, 2], ox, g.n_cols * g.pitch_mm)
+        cy = centre(u[:, 3], oy, g.n_rows * g.pitch_mm)
+        return cx[:, None] + ox, cy[:, None] + oy
 
     def draw_gains(self, n: int, rng: np.random.Generator) -> np.ndarray:
         spread = self.config.piezo.gain_spread
