@@ -11,7 +11,10 @@ every channel of the classifier), and two classifiers trained on the same labell
 (``tactile_learn.few_shot``): the onset-aligned PCA baseline and the press-aligned nearest touch
 (curves read against press time, the force's running integral). Accuracy at 0.5 / 1 / 2 / 4 s of
 contact (the onset: the force's half-plateau crossing), overall and per condition (M metal, W wood,
-CW cooled wood). The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
+CW cooled wood). Beside them ``adapt_choice``: what ``adapt`` hands the user (its card's classifier
+choice, :mod:`tactile_learn.thermal_choice`; ``tactile-learn eval --method ADAPT_FOLDER/``). With
+several labelled sessions the JSON ends with ``summary``: per method the min and median over them
+and for how many issue 11's floors hold. The data: ``--data``, else ``$TACTILE_THERMAL_ROBOT``, else
 ``../shared/data/thermal-robot`` beside the repository.
 """
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -164,6 +168,33 @@ def run_session(data: Path, labelled_session: str, work: Path, args: argparse.Na
     return out
 
 
+#: issue 11's floors: (channel set, duration key, accuracy)
+FLOORS = (("all", "2.0", 0.98), ("heated", "4.0", 0.90))
+
+
+def floor_summary(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """Across the labelled sessions, per channel set and method: the min and median accuracy (all
+    touches) at every duration, and for how many labelled sessions each floor holds."""
+    out: dict[str, Any] = {}
+    for channels in ("heated", "all"):
+        methods = results[0][channels]["methods"]
+        out[channels] = {}
+        for method in methods:
+            values = {k: [r[channels]["methods"][method]["all"][k] for r in results] for k in map(_key, DURATIONS)}
+            entry: dict[str, Any] = {
+                "min": {k: min(v) for k, v in values.items()},
+                "median": {k: float(statistics.median(v)) for k, v in values.items()},
+            }
+            for ch, key, floor in FLOORS:
+                if ch == channels:
+                    held = [
+                        r["labelled"] for r in results if r[channels]["methods"][method]["all"][key] >= floor - 1e-9
+                    ]
+                    entry[f"floor_{floor:g}_at_{key}_s"] = {"held": len(held), "of": len(results), "sessions": held}
+            out[channels][method] = entry
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--data", default=None, help="the thermal-robot folder")
@@ -191,9 +222,19 @@ def main(argv: list[str] | None = None) -> int:
                 + " ".join(a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("/")),
                 "durations_s": list(DURATIONS),
                 "sessions": results,
+                "summary": floor_summary(results),
             }
             if args.json:  # after every session: a long run interrupted keeps what it measured
                 atomic_write_json(args.json, summary)
+    if len(results) > 1:
+        across = floor_summary(results)
+        at = ", ".join(map(_key, DURATIONS))
+        print(f"\nacross {len(results)} labelled sessions (min / median at {at} s; floors held)")
+        for channels, methods in across.items():
+            for method, entry in methods.items():
+                cells = " ".join(f"{entry['min'][k]:.3f}/{entry['median'][k]:.3f}" for k in map(_key, DURATIONS))
+                held = [f"{k}: {v['held']}/{v['of']}" for k, v in entry.items() if k.startswith("floor")]
+                print(f"  {channels:6s} {method:14s} {cells}  {' '.join(held)}")
     for r in results:
         for channels in ("heated", "all"):
             print(f"\n{r['labelled']} labelled, channels {channels}: accuracy at {', '.join(map(_key, DURATIONS))} s")
