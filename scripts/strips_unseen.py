@@ -11,6 +11,12 @@ frames). Writes the JSON and a Markdown table beside it::
 
     python scripts/strips_unseen.py --seeds 5151 6262 --n 600 --test data/mixed-test \\
         --json results/strips_unseen.json
+
+A model is a shipped name or the path of any ``.onnx`` model with its card beside it, e.g. a
+candidate exported from a training run (``tactile-learn export runs/NAME --out runs/NAME/model.onnx``)::
+
+    python scripts/strips_unseen.py strips16 runs/NAME/model.onnx --suite strips16_unseen3 \\
+        --seeds 5151 6262 --n 600 --test data/mixed-test --json results/candidate_unseen3.json
 """
 
 from __future__ import annotations
@@ -103,7 +109,10 @@ def evaluate(
     for name in models:
         model = estimators[name]
         if not isinstance(model, OnnxEstimator):
-            raise SystemExit(f"{name}: not an ONNX strip model")
+            raise SystemExit(
+                f"{name}: not an ONNX strip model (torch weights: export them first, "
+                "tactile-learn export RUN --out MODEL.onnx, and pass MODEL.onnx)"
+            )
         if set(CHECK_OUTPUTS) <= {o["name"] for o in model.card_["outputs"]}:
             checked[name] = CheckedStripModel(model, fallback="intersection").prepare()
         else:
@@ -231,7 +240,12 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("models", nargs="*", default=["strips16", "strips16_small"])
+    parser.add_argument(
+        "models",
+        nargs="*",
+        default=["strips16", "strips16_small"],
+        help="shipped model names or paths of .onnx models with their .json card beside them (a run's export)",
+    )
     parser.add_argument("--suite", default="strips16_unseen")
     parser.add_argument("--seeds", type=int, nargs="+", default=[5151, 6262])
     parser.add_argument("--n", type=int, default=600, help="frames per family and seed")

@@ -1,6 +1,6 @@
 """Why does a strip model lose an unseen family? Sweep one parameter across the training range's edge.
 
-Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``strips16_unseen2``) with one
+Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``_unseen2``, ``_unseen3``) with one
 parameter (or the contact count, or a parameter of the family's object) set to a ladder of values,
 some inside the training scene's range, some beyond it; at every value the model's r against the best
 classical rule on the same fresh frames. A margin that holds inside the training range and falls
@@ -10,6 +10,8 @@ it is not::
     python scripts/strips_unseen_probe.py --n 300 --seed 7777 --json results/strips_unseen_probe.json
     python scripts/strips_unseen_probe.py --suite strips16_unseen2 strips16 --n 300 --seed 7777 \
         --json results/strips_unseen2_probe.json
+    python scripts/strips_unseen_probe.py --suite strips16_unseen3 strips16 strips16_small --n 300 \
+        --seed 7777 --json results/strips_unseen3_probe.json
 """
 
 from __future__ import annotations
@@ -65,6 +67,23 @@ PROBES: dict[str, tuple[str, str, str, tuple[float, ...], dict[str, float]]] = {
     ),
     "chip_pins": ("strips16_unseen2", "dip8_chip", "count", (2, 4, 6, 8), {}),
     "brick_studs": ("strips16_unseen2", "lego_2x4", "count", (2, 4, 6, 8), {}),
+    # round 3: the cup's foot ring shrunk into the training rings' radii (up to 15 mm), at the family's
+    # thin rims and at a thick one (hole 0.6, inside every training ring range); the rim thickened
+    "cup_radius": ("strips16_unseen3", "espresso_cup_foot", "radius_mm", (6.0, 9.0, 12.0, 14.0, 15.5, 17.0, 18.5), {}),
+    "cup_radius_thick": (
+        "strips16_unseen3",
+        "espresso_cup_foot",
+        "radius_mm",
+        (6.0, 9.0, 12.0, 14.0, 15.5, 17.0, 18.5),
+        {"hole_fraction": 0.6},
+    ),
+    "cup_hole": ("strips16_unseen3", "espresso_cup_foot", "hole_fraction", (0.4, 0.6, 0.8, 0.87, 0.91), {}),
+    # objects of many parts, from one part up to the family's count (the models trained on up to six)
+    "sole_nubs": ("strips16_unseen3", "shoe_sole_nubs", "count", (1, 2, 4, 6, 8, 10, 12, 14), {}),
+    "tripod_feet": ("strips16_unseen3", "tripod_feet", "count", (1, 2, 3), {}),
+    "tripod_size": ("strips16_unseen3", "tripod_feet", "object.scale", (5.0, 7.0, 9.0, 11.5, 14.0), {}),
+    "paw_toes": ("strips16_unseen3", "cat_paw", "count", (1, 2, 3, 4, 5), {}),
+    "bottle_feet": ("strips16_unseen3", "bottle_base_feet", "count", (1, 2, 3, 4, 5), {}),
 }
 
 
