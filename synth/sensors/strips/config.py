@@ -182,18 +182,36 @@ class ContactObject:
     """One rigid object whose parts are a frame's contacts (a brick's studs, a fork's tines, a hand's
     fingertips in a row): part ``j`` (the frame's ``j``-th contact) lies ``offsets_mm[j]`` (x, y) from the
     object's centre, the offsets scaled by ``scale`` and turned by ``rotation_deg`` (both drawn per frame,
-    uniformly); the rotation turns every part's own ``angle_deg`` with it. The centre is drawn so that every
-    part's centre lies inside the array shrunk by ``margin_mm``. With ``part_kinds``, part ``j`` is drawn
-    from ``kinds[j]`` (one entry per part: a pad and fingertips) instead of by the kinds' weights."""
+    uniformly; the rotation minus the ``rotation_holdout`` intervals, so that a block part's final angle
+    can keep an evaluation's block angles held out); the rotation turns every part's own ``angle_deg``
+    with it. The centre is drawn so that every part's centre lies inside the array shrunk by
+    ``margin_mm``. With ``part_kinds``, part ``j`` is drawn from ``kinds[j]`` (one entry per part: a pad
+    and fingertips) instead of by the kinds' weights."""
 
     offsets_mm: tuple[tuple[float, float], ...] = param(((0.0, 0.0),), lo=-100.0, hi=100.0, unit="mm")
     rotation_deg: tuple[float, float] = param((0.0, 0.0), lo=-360.0, hi=360.0, unit="deg", ordered=True)
     scale: tuple[float, float] = param((1.0, 1.0), lo=0.0, lo_open=True, hi=100.0, ordered=True)
     part_kinds: bool = param(False, doc="part j takes kinds[j] instead of a weighted draw")
+    rotation_holdout: tuple[tuple[float, float], ...] = param(
+        (),
+        lo=-360.0,
+        hi=360.0,
+        unit="deg",
+        omit_default=True,
+        doc="intervals [lo, hi] of the rotation never drawn (a block part's angle turns with the object)",
+    )
 
     def __post_init__(self) -> None:
         if not self.offsets_mm:
             raise ConfigError("stimuli.object.offsets_mm: at least one part is needed")
+        for lo, hi in self.rotation_holdout:
+            if hi <= lo:
+                raise ConfigError(f"stimuli.object.rotation_holdout: [{lo}, {hi}] is empty (lo must be below hi)")
+        if not allowed_intervals(*self.rotation_deg, list(self.rotation_holdout)):
+            raise ConfigError(
+                f"stimuli.object.rotation_holdout: the held-out intervals cover the whole rotation range "
+                f"{list(self.rotation_deg)}"
+            )
 
     @property
     def reach_mm(self) -> float:

@@ -231,7 +231,8 @@ class ContactGenerator(StimulusGenerator[StripContacts]):
         st, g = self.config.stimuli, self.config.geometry
         n, k = angle_deg.shape
         u = rng.random((n, 4))
-        rotation = obj.rotation_deg[0] + u[:, 0] * (obj.rotation_deg[1] - obj.rotation_deg[0])
+        # without holes draw_except is lo + u (hi - lo): objects without a rotation holdout draw as before
+        rotation = draw_except(u[:, 0], *obj.rotation_deg, list(obj.rotation_holdout))
         scale = obj.scale[0] + u[:, 1] * (obj.scale[1] - obj.scale[0])
         offsets = np.asarray(obj.offsets_mm[:k], dtype=np.float64)
         theta = np.deg2rad(rotation)[:, None]
