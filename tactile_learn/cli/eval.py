@@ -39,7 +39,7 @@ The thermal few-shot methods (aligned_pca, press_aligned: docs/thermal-real.md) 
 from the labelled recordings in --train (one model per duration) and add their leave-one-out
 accuracy on them (leave_one_out_by_duration). An adapt output folder as --method classifies with
 the classifier adapt chose (its card's 'classifier': the network and the few-shot methods, scored
-on the labelled touches adapt kept, the best averaged; choice_by_duration)."""
+on the labelled touches adapt kept; those within one touch of the best vote; choice_by_duration)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
