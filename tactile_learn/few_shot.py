@@ -22,7 +22,14 @@ from tactile_learn.tasks.base import EvalData
 from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask, channel_keys
 from tactile_learn.tasks.thermal_metrics import duration_key
 
-__all__ = ["FEW_SHOT_METHODS", "few_shot_evaluate", "few_shot_features", "few_shot_predict", "leave_one_out"]
+__all__ = [
+    "FEW_SHOT_METHODS",
+    "few_shot_evaluate",
+    "few_shot_features",
+    "few_shot_predict",
+    "labelled_mask",
+    "leave_one_out",
+]
 
 FEW_SHOT_METHODS = ("aligned_pca", "press_aligned")
 
@@ -32,7 +39,7 @@ def _check(method: str) -> None:
         raise ConfigError(f"few-shot method {method!r} is not one of {', '.join(FEW_SHOT_METHODS)}")
 
 
-def _labelled(data: EvalData) -> np.ndarray:
+def labelled_mask(data: EvalData) -> np.ndarray:
     """Which touches carry a label (recordings may hold unlabelled ones; simulated touches all do)."""
     return np.asarray(data.extra.get("labelled", np.ones(len(data), dtype=bool)), dtype=bool)
 
@@ -57,7 +64,7 @@ def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: f
     """Class probabilities (N, K) of the touches of ``data`` by ``method`` trained on the labelled
     touches of ``train`` (same scene), both read up to ``duration_s`` after their onsets."""
     _check(method)
-    keep = _labelled(train)
+    keep = labelled_mask(train)
     if not keep.any():
         raise ConfigError(f"{train.source}: no labelled touch to train the {method} classifier on")
     k = len(train.scene.sensor.class_names)
@@ -69,7 +76,7 @@ def few_shot_predict(method: str, train: EvalData, data: EvalData, duration_s: f
 def leave_one_out(method: str, train: EvalData, duration_s: float) -> float:
     """Accuracy of ``method`` on each labelled touch of ``train`` when trained on the others: how a
     user with one labelled session chooses a method (or its settings) without touching the rest."""
-    labelled = np.flatnonzero(_labelled(train))
+    labelled = np.flatnonzero(labelled_mask(train))
     if len(labelled) < 3:
         raise ConfigError(f"{train.source}: leave-one-out needs 3 or more labelled touches, got {len(labelled)}")
     right = []
@@ -101,5 +108,5 @@ def few_shot_evaluate(
     durations = tuple(DURATIONS_S if durations is None else durations)
     metrics = ThermalTask().evaluate_by_duration(predict, data, durations, group_by)
     metrics["leave_one_out_by_duration"] = {duration_key(d): leave_one_out(method, train, d) for d in durations}
-    metrics["n_labelled"] = int(np.count_nonzero(_labelled(train)))
+    metrics["n_labelled"] = int(np.count_nonzero(labelled_mask(train)))
     return metrics

@@ -41,12 +41,12 @@ import numpy as np
 from synth.errors import ConfigError, DataError
 from synth.io import atomic_write_text
 from synth.scene import Scene
-from tactile_learn.few_shot import FEW_SHOT_METHODS, _labelled, few_shot_predict, leave_one_out
+from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict, labelled_mask, leave_one_out
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask
 from tactile_learn.tasks.thermal_data import view
 from tactile_learn.tasks.thermal_metrics import duration_key
-from tactile_learn.thermal_recordings import INDEX, _read_text
+from tactile_learn.thermal_recordings import INDEX, read_csv_text
 
 __all__ = [
     "CANDIDATES",
@@ -105,7 +105,7 @@ def candidate_scores(train: EvalData, network: Classifier | None, duration_s: fl
     """Each candidate's score on the labelled touches of ``train`` at ``duration_s`` (module
     docstring); without a ``network`` the others alone."""
     scores = {m: leave_one_out(m, train, duration_s) for m in FEW_SHOT_METHODS}
-    keep = _labelled(train)
+    keep = labelled_mask(train)
     k = len(train.scene.sensor.class_names)
     labelled = train.subset(np.flatnonzero(keep))
     for name, classifier in window_candidates(train.scene, network).items():
@@ -159,7 +159,7 @@ def choice_evaluate(
         raise ConfigError("the labelled touches and the touches to classify are read with different classes")
     durations = tuple(DURATIONS_S if durations is None else durations)
     choice: dict[str, dict[str, Any]] = {}
-    n = int(_labelled(train).sum())
+    n = int(labelled_mask(train).sum())
     for d in durations:
         scores = candidate_scores(train, network, d)
         choice[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
@@ -181,7 +181,7 @@ def copy_recordings(source: str | Path, target: str | Path) -> Path:
     index = folder / INDEX
     if not index.is_file():
         raise DataError(f"{folder}: no {INDEX}")
-    reader = csv.DictReader(io.StringIO(_read_text(index)))
+    reader = csv.DictReader(io.StringIO(read_csv_text(index)))
     fields = list(reader.fieldnames or [])
     if "file" not in fields:
         raise DataError(f"{index}: no column 'file' (columns: {', '.join(fields)})")
@@ -208,7 +208,7 @@ def write_choice(network: Classifier, labelled: str | Path, folder: str | Path, 
     touch's record reaches, the scores and members)."""
     copy = copy_recordings(labelled, Path(folder) / LABELLED_FOLDER)
     train = ThermalTask().load_eval_data(copy, scene)
-    keep = _labelled(train)
+    keep = labelled_mask(train)
     reached = [d for d in DURATIONS_S if view(train, d)[1][keep].all()]
     if not reached:
         raise DataError(f"{labelled}: no labelled touch's record reaches {min(DURATIONS_S):g} s after its onset")

@@ -47,6 +47,7 @@ __all__ = [
     "Touch",
     "press_onset",
     "press_profile",
+    "read_csv_text",
     "read_recordings",
     "read_touch",
     "read_touch_columns",
@@ -103,7 +104,7 @@ def _float(text: str, where: str) -> float:
     return value
 
 
-def _read_text(path: Path) -> str:
+def read_csv_text(path: Path) -> str:
     """A CSV's text (a spreadsheet's byte-order mark dropped); unreadable files are a DataError."""
     try:
         return path.read_text(encoding="utf-8-sig")
@@ -117,7 +118,7 @@ def read_touch_columns(path: str | Path) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: touch file not found")
-    text = _read_text(path)
+    text = read_csv_text(path)
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise DataError(f"{path}: empty file (expected a header time_s,temperature_c and samples)")
@@ -216,7 +217,7 @@ def read_recordings(
         raise DataError(f"{folder}: no such recording directory")
     if not index.is_file():
         raise DataError(f"{folder}: no {INDEX} (a recording directory lists its touches there: file,material)")
-    text = _read_text(index)
+    text = read_csv_text(index)
     reader = csv.DictReader(io.StringIO(text), restkey=_EXTRA)
     if not reader.fieldnames:
         raise DataError(f"{index}: empty file (expected a header file,material and one row per touch)")
@@ -291,7 +292,7 @@ def select_recordings(
     index = folder / INDEX
     if not index.is_file():
         raise DataError(f"{folder}: no {INDEX}")
-    reader = csv.DictReader(io.StringIO(_read_text(index)))
+    reader = csv.DictReader(io.StringIO(read_csv_text(index)))
     fields = reader.fieldnames or []
     if column not in fields:
         raise DataError(f"{index}: no column {column!r} (columns: {', '.join(fields)})")
