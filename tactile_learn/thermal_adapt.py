@@ -6,10 +6,10 @@ generate a training and a validation set from the calibrated scene, train a smal
 it on the labelled real touches themselves (the validation a user can trust: the synthetic set only
 shows the network learnt the simulator), export ONNX with a card holding the calibration report, the
 classes, the channels and the metrics, and warn when the real-touch accuracy is near chance. Last,
-the classifier the user gets (:mod:`tactile_learn.thermal_choice`): per duration, the network and
-the classifiers trained on the labelled touches alone, scored on those touches, the best averaged;
-the choice goes into the card and the labelled touches are copied into the folder, so that
-``tactile-learn eval --method OUT/`` classifies with it.
+the classifier the user gets (:mod:`tactile_learn.thermal_choice`): per duration, the network, the
+calibrated model and the classifiers trained on the labelled touches alone are scored on those
+touches and those within one touch of the best vote; the choice goes into the card and the labelled
+touches are copied into the folder, so that ``tactile-learn eval --method OUT/`` classifies with it.
 """
 
 from __future__ import annotations

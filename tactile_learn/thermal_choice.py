@@ -29,9 +29,6 @@ numpy and onnxruntime; no torch.
 
 from __future__ import annotations
 
-import csv
-import io
-import shutil
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
@@ -39,14 +36,13 @@ from typing import Any, Protocol
 import numpy as np
 
 from synth.errors import ConfigError, DataError
-from synth.io import atomic_write_text
 from synth.scene import Scene
 from tactile_learn.few_shot import FEW_SHOT_METHODS, few_shot_predict, labelled_mask, leave_one_out
 from tactile_learn.tasks.base import EvalData
 from tactile_learn.tasks.thermal import DURATIONS_S, ThermalTask
 from tactile_learn.tasks.thermal_data import view
 from tactile_learn.tasks.thermal_metrics import duration_key
-from tactile_learn.thermal_recordings import INDEX, read_csv_text
+from tactile_learn.thermal_recordings import INDEX, copy_recordings
 
 __all__ = [
     "CANDIDATES",
@@ -54,6 +50,7 @@ __all__ = [
     "RULE",
     "WINDOW_CANDIDATES",
     "candidate_scores",
+    "choice_by_duration",
     "choice_evaluate",
     "choice_predict",
     "choose",
@@ -124,6 +121,19 @@ def choose(scores: dict[str, float], n_labelled: int) -> list[str]:
     return [m for m, s in scores.items() if s >= best - 1.0 / n_labelled - 1e-9]  # 1e-9: fractions of counts
 
 
+def choice_by_duration(
+    train: EvalData, network: Classifier | None, durations: Sequence[float]
+) -> dict[str, dict[str, Any]]:
+    """Per duration (its key), the candidates' scores on the labelled touches of ``train`` and the
+    members they choose (:func:`candidate_scores`, :func:`choose`)."""
+    n = int(labelled_mask(train).sum())
+    out = {}
+    for d in durations:
+        scores = candidate_scores(train, network, d)
+        out[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
+    return out
+
+
 def choice_predict(
     members: Sequence[str], train: EvalData, data: EvalData, duration_s: float, network: Classifier | None
 ) -> np.ndarray:
@@ -158,11 +168,7 @@ def choice_evaluate(
     if train.scene.sensor.class_names != data.scene.sensor.class_names:
         raise ConfigError("the labelled touches and the touches to classify are read with different classes")
     durations = tuple(DURATIONS_S if durations is None else durations)
-    choice: dict[str, dict[str, Any]] = {}
-    n = int(labelled_mask(train).sum())
-    for d in durations:
-        scores = candidate_scores(train, network, d)
-        choice[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
+    choice = choice_by_duration(train, network, durations)
 
     def predict(duration_s: float, windows: np.ndarray, rows: np.ndarray) -> np.ndarray:
         members = choice[duration_key(duration_s)]["members"]
@@ -172,34 +178,6 @@ def choice_evaluate(
     metrics = ThermalTask().evaluate_by_duration(predict, data, durations, group_by)
     metrics["choice_by_duration"] = choice
     return metrics
-
-
-def copy_recordings(source: str | Path, target: str | Path) -> Path:
-    """A self-contained copy of the recording folder ``source`` (its touches.csv and every touch
-    file it names, flat under ``target``), so an adapt folder keeps the touches it learnt from."""
-    folder, out = Path(source), Path(target)
-    index = folder / INDEX
-    if not index.is_file():
-        raise DataError(f"{folder}: no {INDEX}")
-    reader = csv.DictReader(io.StringIO(read_csv_text(index)))
-    fields = list(reader.fieldnames or [])
-    if "file" not in fields:
-        raise DataError(f"{index}: no column 'file' (columns: {', '.join(fields)})")
-    rows = list(reader)
-    names = [Path(r["file"]).name for r in rows]
-    if len(set(names)) != len(names):
-        raise DataError(f"{index}: two touch files share a name; give each touch its own file name")
-    out.mkdir(parents=True, exist_ok=True)
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    for row, name in zip(rows, names, strict=True):
-        if not (folder / row["file"]).is_file():
-            raise DataError(f"{index}: touch file {row['file']!r} does not exist")
-        shutil.copyfile(folder / row["file"], out / name)  # an absolute name (a selection's index) stays absolute
-        writer.writerow({**row, "file": name})
-    atomic_write_text(out / INDEX, text.getvalue())  # last: a folder without it is no recording set
-    return out
 
 
 def write_choice(network: Classifier, labelled: str | Path, folder: str | Path, scene: Any) -> dict[str, Any]:
@@ -212,16 +190,11 @@ def write_choice(network: Classifier, labelled: str | Path, folder: str | Path, 
     reached = [d for d in DURATIONS_S if view(train, d)[1][keep].all()]
     if not reached:
         raise DataError(f"{labelled}: no labelled touch's record reaches {min(DURATIONS_S):g} s after its onset")
-    by_duration = {}
-    n = int(keep.sum())
-    for d in reached:
-        scores = candidate_scores(train, network, d)
-        by_duration[duration_key(d)] = {"scores": scores, "members": choose(scores, n)}
     return {
         "rule": RULE,
         "labelled": LABELLED_FOLDER,
-        "n_labelled": n,
-        "by_duration": by_duration,
+        "n_labelled": int(keep.sum()),
+        "by_duration": choice_by_duration(train, network, reached),
     }
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import shutil
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,6 +46,7 @@ __all__ = [
     "INDEX",
     "OPTIONAL_COLUMNS",
     "Touch",
+    "copy_recordings",
     "press_onset",
     "press_profile",
     "read_csv_text",
@@ -281,6 +283,29 @@ def write_recordings(path: str | Path, touches: Iterable[Touch]) -> Path:
     return folder / INDEX
 
 
+def _read_index(folder: Path, column: str) -> tuple[Path, list[str], list[dict[str, str]]]:
+    """The recording folder's index (touches.csv): its path, columns and rows; ``column`` must be one."""
+    index = folder / INDEX
+    if not index.is_file():
+        raise DataError(f"{folder}: no {INDEX}")
+    reader = csv.DictReader(io.StringIO(read_csv_text(index)))
+    fields = list(reader.fieldnames or [])
+    if column not in fields:
+        raise DataError(f"{index}: no column {column!r} (columns: {', '.join(fields)})")
+    return index, fields, list(reader)
+
+
+def _write_index(target: Path, fields: list[str], rows: list[dict[str, str]]) -> None:
+    """``target``/touches.csv holding ``rows``, written atomically and last (a folder without it is no
+    recording set)."""
+    text = io.StringIO()
+    writer = csv.DictWriter(text, fieldnames=fields, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    target.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(target / INDEX, text.getvalue())
+
+
 def select_recordings(
     source: str | Path, out: str | Path, column: str, values: Sequence[str], keep: bool = True
 ) -> Path:
@@ -289,24 +314,29 @@ def select_recordings(
     the rest as the test set). The touch files stay where they are: the new index names them by
     their absolute path (``out`` is a working folder, never a project file)."""
     folder, target = Path(source), Path(out)
-    index = folder / INDEX
-    if not index.is_file():
-        raise DataError(f"{folder}: no {INDEX}")
-    reader = csv.DictReader(io.StringIO(read_csv_text(index)))
-    fields = reader.fieldnames or []
-    if column not in fields:
-        raise DataError(f"{index}: no column {column!r} (columns: {', '.join(fields)})")
-    rows = [r for r in reader if (r[column] in values) == keep]
+    index, fields, rows = _read_index(folder, column)
+    rows = [r for r in rows if (r[column] in values) == keep]
     if not rows:
         raise DataError(f"{index}: no touch with {column} {'in' if keep else 'outside'} {', '.join(values)}")
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=fields, lineterminator="\n")
-    writer.writeheader()
-    for r in rows:
-        writer.writerow({**r, "file": str((folder / r["file"]).resolve())})
-    target.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(target / INDEX, text.getvalue())
+    _write_index(target, fields, [{**r, "file": str((folder / r["file"]).resolve())} for r in rows])
     return target
+
+
+def copy_recordings(source: str | Path, target: str | Path) -> Path:
+    """A self-contained copy of the recording folder ``source`` (its touches.csv and every touch
+    file it names, flat under ``target``), so an adapt folder keeps the touches it learnt from."""
+    folder, out = Path(source), Path(target)
+    index, fields, rows = _read_index(folder, "file")
+    names = [Path(r["file"]).name for r in rows]
+    if len(set(names)) != len(names):
+        raise DataError(f"{index}: two touch files share a name; give each touch its own file name")
+    out.mkdir(parents=True, exist_ok=True)
+    for row, name in zip(rows, names, strict=True):
+        if not (folder / row["file"]).is_file():
+            raise DataError(f"{index}: touch file {row['file']!r} does not exist")
+        shutil.copyfile(folder / row["file"], out / name)  # an absolute name (a selection's index) stays absolute
+    _write_index(out, fields, [{**row, "file": name} for row, name in zip(rows, names, strict=True)])
+    return out
 
 
 def _grid(touch: Touch, fs: float) -> np.ndarray:
