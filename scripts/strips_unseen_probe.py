@@ -1,6 +1,6 @@
 """Why does a strip model lose an unseen family? Sweep one parameter across the training range's edge.
 
-Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``_unseen2``, ``_unseen3``) with one
+Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``_unseen2`` to ``_unseen4``) with one
 parameter (or the contact count, or a parameter of the family's object) set to a ladder of values,
 some inside the training scene's range, some beyond it; at every value the model's r against the best
 classical rule on the same fresh frames. A margin that holds inside the training range and falls
@@ -12,6 +12,8 @@ it is not::
         --json results/strips_unseen2_probe.json
     python scripts/strips_unseen_probe.py --suite strips16_unseen3 strips16 strips16_small --n 300 \
         --seed 7777 --json results/strips_unseen3_probe.json
+    python scripts/strips_unseen_probe.py --suite strips16_unseen4 strips16 strips16_small --n 300 \
+        --seed 7777 --json results/strips_unseen4_probe.json
 """
 
 from __future__ import annotations
@@ -33,9 +35,10 @@ from tactile_learn.suites import suite_eval_data
 
 CLASSICAL = ("intersection", "projection")
 
-#: probe: (suite, family, what is swept, values, fixed); "count" sets the contacts per frame,
-#: "margin_mm" the margin, "object.NAME" a parameter of the family's object, any other name a parameter
-#: of every stimulus kind of the family (a point range); ``fixed`` sets others so for every value
+#: probe: (suite, family, what is swept, values, fixed); "count" sets the contacts per frame, "parts"
+#: cuts the family's object down to its first parts (and their kinds), "margin_mm" sets the margin,
+#: "object.NAME" a parameter of the family's object, any other name a parameter of every stimulus kind
+#: of the family (a point range); ``fixed`` sets others so for every value
 PROBES: dict[str, tuple[str, str, str, tuple[float, ...], dict[str, float]]] = {
     "punch_radius": ("strips16_unseen", "bottle_cap", "radius_mm", (3.0, 4.5, 6.0, 7.0, 8.0, 9.0, 10.0), {}),
     "fingertip_count": ("strips16_unseen", "five_fingertips", "count", (2, 3, 4, 5), {}),
@@ -84,12 +87,41 @@ PROBES: dict[str, tuple[str, str, str, tuple[float, ...], dict[str, float]]] = {
     "tripod_size": ("strips16_unseen3", "tripod_feet", "object.scale", (5.0, 7.0, 9.0, 11.5, 14.0), {}),
     "paw_toes": ("strips16_unseen3", "cat_paw", "count", (1, 2, 3, 4, 5), {}),
     "bottle_feet": ("strips16_unseen3", "bottle_base_feet", "count", (1, 2, 3, 4, 5), {}),
+    # round 4: the watch's case alone (no straps, at most 8 mm of it off the array) from training's punch
+    # radii (up to 15 mm) to the family's, and the family itself (straps on) over the same radii
+    "watch_case_radius": (
+        "strips16_unseen4",
+        "watch_on_its_back",
+        "radius_mm",
+        (6.0, 9.0, 12.0, 15.0, 16.0, 17.5, 19.0),
+        {"parts": 1, "margin_mm": 12.0},
+    ),
+    "watch_radius": (
+        "strips16_unseen4",
+        "watch_on_its_back",
+        "radius_mm",
+        (6.0, 9.0, 12.0, 15.0, 16.0, 17.5, 19.0),
+        {},
+    ),
+    # many small contacts: pins and beads from one up to the family's count (training stops at ten)
+    "brush_pins": ("strips16_unseen4", "hairbrush_pins", "count", (1, 2, 4, 6, 8, 10, 12, 14, 16), {}),
+    "bead_count": ("strips16_unseen4", "bead_loop", "count", (1, 2, 4, 6, 8, 10, 13), {}),
+    # the bead loop shrunk from the family's 16.5-18.5 mm radius until its beads touch (a ring)
+    "bead_loop_radius": ("strips16_unseen4", "bead_loop", "object.scale", (6.0, 9.0, 12.0, 15.0, 17.5), {}),
+    # a card's corner: its edges widened into training's block widths, and its tilt taken away
+    "card_width": ("strips16_unseen4", "card_corner", "width_mm", (0.5, 0.8, 1.0, 1.5, 2.5, 4.0), {}),
+    "card_tilt": ("strips16_unseen4", "card_corner", "tilt", (-1.0, -0.8, -0.6, -0.3, 0.0), {}),
 }
 
 
 def _set(stimuli: dict[str, Any], parameter: str, value: float) -> None:
     if parameter == "count":
         stimuli["count"] = [int(value), int(value)]
+    elif parameter == "parts":  # the object cut down to its first parts (and their kinds)
+        stimuli["count"] = [int(value), int(value)]
+        stimuli["object"]["offsets_mm"] = stimuli["object"]["offsets_mm"][: int(value)]
+        if stimuli["object"].get("part_kinds"):
+            stimuli["kinds"] = stimuli["kinds"][: int(value)]
     elif parameter == "margin_mm":
         stimuli["margin_mm"] = float(value)
     elif parameter.startswith("object."):

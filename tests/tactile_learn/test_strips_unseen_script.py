@@ -80,3 +80,15 @@ def test_probe_ladders_set_one_parameter_and_keep_the_rest() -> None:
         assert kind.force_n == original.kinds[0].force_n
     counts = parse_suite(strips_unseen_probe.probe_suite("fingertip_count"), "probe").families
     assert [f.scene.sensor.stimuli.count for f in counts] == [(v, v) for v in (2, 3, 4, 5)]
+
+
+def test_a_probe_can_cut_an_object_down_to_its_first_parts() -> None:
+    """The watch's case alone: one part, the case's kind only, and the other settings as fixed."""
+    suite = parse_suite(strips_unseen_probe.probe_suite("watch_case_radius"), "probe")
+    values = strips_unseen_probe.PROBES["watch_case_radius"][3]
+    for fam, value in zip(suite.families, values, strict=True):
+        stimuli = fam.scene.sensor.stimuli
+        assert stimuli.count == (1, 1) and stimuli.margin_mm == 12.0
+        assert stimuli.object is not None and stimuli.object.offsets_mm == ((0.0, 0.0),)
+        (case,) = stimuli.kinds
+        assert case.kind == "punch" and case.radius_mm == (value, value)
