@@ -38,13 +38,21 @@ class StripLoads(nn.Module):
         self.r0 = float(piezo.strip_resistance_ohm)
         segments = np.concatenate([np.full(g.n_rows, g.n_cols), np.full(g.n_cols, g.n_rows)]).astype(np.float32)
         self.register_buffer("segments", torch.from_numpy(segments))
+        # the divider voltage v_unloaded + (volts - offset) / gain, clamped to (0, supply) as the
+        # numpy inverse clamps it (outside, it is not physical), with the clamp moved onto the
+        # readings (gain > 0 keeps the bounds' order) and 1 / gain into the numerator below:
+        # ``clamp(volts, lo, hi) + shift`` is the divider voltage times the gain
+        self.shift = self.gain * self.v_unloaded - self.offset
+        self.volts_lo = self.gain * 1e-9 * self.supply - self.shift
+        self.volts_hi = self.gain * self.supply * (1 - 1e-9) - self.shift
+        # the segment's conductance share 1 - R / r0, R = reference (supply / divider - 1)
+        self.share_at_infinity = 1.0 + self.reference / self.r0
+        self.share_numerator = self.reference * self.supply / self.r0 * self.gain
 
     def forward(self, volts: torch.Tensor) -> torch.Tensor:
-        divider = self.v_unloaded + (volts - self.offset) / self.gain
-        # same clamps as the numpy inverse: a divider voltage outside (0, supply) is not physical
-        divider = divider.clamp(1e-9 * self.supply, self.supply * (1 - 1e-9))
-        resistance = self.reference * (self.supply / divider - 1.0)
-        return (1.0 - resistance / self.r0).clamp(0.0, 1.0) * self.segments
+        # the same function as the readout's formula step by step, in six graph nodes instead of twelve
+        divider = volts.clamp(self.volts_lo, self.volts_hi) + self.shift
+        return (self.share_at_infinity - self.share_numerator / divider).clamp(0.0, 1.0) * self.segments
 
 
 class AxialBlock(nn.Module):
@@ -68,7 +76,9 @@ class AxialBlock(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
         cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
-        return self.act(x + self.own(x) + self.along_rows(rows) + self.along_cols(cols))
+        # summed so that the 1 x 1 convolution adds onto one full-size tensor: the same function, and
+        # one fused node under onnxruntime (tactile_learn.onnx_fuse) instead of a Conv, Add and ReLU
+        return self.act(self.own(x) + (x + (self.along_rows(rows) + self.along_cols(cols))))
 
 
 def strip_encoder(channels: int) -> nn.Sequential:

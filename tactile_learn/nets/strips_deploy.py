@@ -38,20 +38,26 @@ from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripF
 __all__ = ["DeployedStripNet", "deploy"]
 
 
-def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int]) -> nn.Conv1d:
+def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int], first: bool) -> nn.Conv1d:
     """One Conv1d computing ``a`` on the first ``groups_in[0]`` input channels and ``b`` on the
-    next ``groups_in[1]``, outputs stacked (zeros across)."""
+    next ``groups_in[1]``, outputs stacked (zeros across), and passing the two profiles through
+    unchanged as its last two outputs (a 1 at the kernel's centre: exact): the first layer's inputs
+    are the profiles, a later layer's last two inputs are the earlier layer's copies."""
     ia, ib = groups_in
     oa, ob = a.out_channels, b.out_channels
     k = a.kernel_size[0]
-    conv = nn.Conv1d(ia + ib, oa + ob, k, padding=a.padding)
+    carried = 0 if first else 2
+    conv = nn.Conv1d(ia + ib + carried, oa + ob + 2, k, padding=a.padding)
     with torch.no_grad():
         conv.weight.zero_()
         conv.weight[:oa, :ia] = a.weight
-        conv.weight[oa:, ia:] = b.weight
+        conv.weight[oa : oa + ob, ia : ia + ib] = b.weight
+        for c in range(2):
+            conv.weight[oa + ob + c, c if first else ia + ib + c, k // 2] = 1.0
         assert conv.bias is not None
+        conv.bias.zero_()
         conv.bias[:oa] = a.bias if a.bias is not None else 0.0
-        conv.bias[oa:] = b.bias if b.bias is not None else 0.0
+        conv.bias[oa : oa + ob] = b.bias if b.bias is not None else 0.0
     return conv
 
 
@@ -74,7 +80,9 @@ class _DeployedAxial(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
         cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
-        return torch.relu(self.own(x) + self.along_rows(rows) + self.along_cols(cols))
+        # the pooled terms first: their full-size sum is what the 1 x 1 convolution adds onto
+        # (one fused node under onnxruntime, tactile_learn.onnx_fuse)
+        return torch.relu(self.own(x) + (self.along_rows(rows) + self.along_cols(cols)))
 
 
 class DeployedStripNet(nn.Module):
@@ -84,6 +92,7 @@ class DeployedStripNet(nn.Module):
     before the step, as ``GeneralStripNetWithResidual`` reports it."""
 
     total_weights: torch.Tensor
+    total_bias: torch.Tensor
     diff_weights: torch.Tensor
     half_weights: torch.Tensor
     sums: torch.Tensor
@@ -107,8 +116,10 @@ class DeployedStripNet(nn.Module):
         layers: list[nn.Module] = []
         for k, (ra, ca) in enumerate(zip(cross.row_encoder, cross.col_encoder, strict=True)):
             if isinstance(ra, nn.Conv1d) and isinstance(ca, nn.Conv1d):
+                # the first layer reads the two profiles; every layer carries them through to the
+                # projections (non-negative: the ReLUs keep them), so no Concat joins them again
                 width = (1, 1) if k == 0 else (enc, enc)
-                layers += [_block_diagonal_conv1d(ra, ca, width), nn.ReLU()]
+                layers += [_block_diagonal_conv1d(ra, ca, width, first=k == 0), nn.ReLU()]
         self.encoder = nn.Sequential(*layers)
         self._projections(net, enc, hidden)
         self.hidden = hidden
@@ -209,7 +220,9 @@ class DeployedStripNet(nn.Module):
         is_row = (torch.arange(strips) < n).to(torch.float32)
         self.register_buffer("diff_weights", 2.0 * is_row - 1.0)
         self.register_buffer("half_weights", torch.full((strips,), 0.5))
-        self.register_buffer("total_weights", torch.full((strips, 1), 0.5))
+        # the frame total as one Gemm (weights and the floor as its bias), not a MatMul and an Add
+        self.register_buffer("total_weights", torch.full((1, strips), 0.5))
+        self.register_buffer("total_bias", torch.tensor([self.total_floor], dtype=torch.float32))
         self.balance_floor = residual.floor
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -217,18 +230,18 @@ class DeployedStripNet(nn.Module):
         loads = (self.c0 - self.numerator / (readings.clamp(self.v_lo, self.v_hi) + self.v_shift)).clamp(
             0.0, self.segments
         )
-        total = loads @ self.total_weights + self.total_floor  # (B, 1)
+        total = nn.functional.linear(loads, self.total_weights, self.total_bias)  # (B, 1)
         shape = loads / total
         context = self.context(torch.cat([shape, torch.log(total)], dim=1))  # (B, H)
         profiles = shape.reshape(-1, 2, n)  # rows and columns as the two channels of one sequence
-        features = torch.cat([self.encoder(profiles), profiles], dim=1)
+        features = self.encoder(profiles)  # the encoder's features and the profiles carried through
         row_terms = self.project_rows(features) + context.unsqueeze(2)  # (B, H, N)
         col_terms = self.project_cols(features)
         rows = shape[:, :n].reshape(-1, 1, n, 1)
         cols = shape[:, n:].reshape(-1, 1, 1, n)
         product = rows * cols  # (B, 1, N, M)
         physics = torch.cat([product, torch.minimum(rows, cols)], dim=1)
-        x = torch.relu(row_terms.unsqueeze(3) + col_terms.unsqueeze(2) + self.physics(physics))
+        x = torch.relu(self.physics(physics) + (row_terms.unsqueeze(3) + col_terms.unsqueeze(2)))
         x = self.blocks(x)
         base = product  # the classical estimate / (slope * total): the linear base
         if self.law_base:  # the law's inverse of the share (exponent 1: three nodes, no power)
