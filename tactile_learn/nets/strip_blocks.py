@@ -12,7 +12,7 @@ from torch import nn
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 
-__all__ = ["SIZES", "AxialBlock", "StripLoads", "context_mlp", "strip_encoder"]
+__all__ = ["SIZES", "AxialBlock", "StripLoads", "axial_pools", "context_mlp", "strip_encoder"]
 
 #: size -> (strip encoder channels, crossing channels, context width, mixing blocks) of
 #: architectures 1 and 3
@@ -74,11 +74,22 @@ class AxialBlock(nn.Module):
         self.act = nn.ReLU()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
-        cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
+        rows, cols = axial_pools(x)
         # summed so that the 1 x 1 convolution adds onto one full-size tensor: the same function, and
         # one fused node under onnxruntime (tactile_learn.onnx_fuse) instead of a Conv, Add and ReLU
         return self.act(self.own(x) + (x + (self.along_rows(rows) + self.along_cols(cols))))
+
+
+def axial_pools(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The strongest and the mean features along each row (B, 2C, N, 1) and each column (B, 2C, 1, M).
+
+    The column mean is an average pool over the whole column: the same mean, but onnxruntime's
+    ``ReduceMean`` over the middle axis is its slow, strided case (measured, batch 1: 6.5 us against
+    3.6 for ``AveragePool``; batch 1024: 3.9 against 1.0 us per frame of 24 x 16 x 16 features);
+    over the last axis ``ReduceMean`` is the faster one (3.9 against 11.8 us), so rows keep it."""
+    rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
+    cols = torch.cat([x.amax(dim=2, keepdim=True), nn.functional.avg_pool2d(x, (x.shape[2], 1))], dim=1)
+    return rows, cols
 
 
 def strip_encoder(channels: int) -> nn.Sequential:

@@ -31,33 +31,31 @@ from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
-from tactile_learn.nets.strip_blocks import law_gain
+from tactile_learn.nets.strip_blocks import axial_pools, law_gain
 from tactile_learn.nets.strips_consistent import ConsistencyStep
 from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
 __all__ = ["DeployedStripNet", "deploy"]
 
 
-def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int], first: bool) -> nn.Conv1d:
-    """One Conv1d computing ``a`` on the first ``groups_in[0]`` input channels and ``b`` on the
-    next ``groups_in[1]``, outputs stacked (zeros across), and passing the two profiles through
-    unchanged as its last two outputs (a 1 at the kernel's centre: exact): the first layer's inputs
-    are the profiles, a later layer's last two inputs are the earlier layer's copies."""
-    ia, ib = groups_in
-    oa, ob = a.out_channels, b.out_channels
+def _grouped_conv1d(a: Any, b: Any, first: bool) -> nn.Conv1d:
+    """One Conv1d of two groups, rows then columns: group 0 computes ``a``, group 1 ``b`` (no
+    multiplications by the zeros of a block-diagonal matrix), and each group passes its strip
+    profile through unchanged as its last channel (a 1 at the kernel's centre: exact). A group's
+    channels: the layer's features, then the profile; the first layer reads the profiles alone."""
     k = a.kernel_size[0]
-    carried = 0 if first else 2
-    conv = nn.Conv1d(ia + ib + carried, oa + ob + 2, k, padding=a.padding)
+    features = a.out_channels
+    width = 1 if first else features + 1  # input channels per group
+    conv = nn.Conv1d(2 * width, 2 * (features + 1), k, padding=a.padding, groups=2)
+    assert conv.bias is not None
     with torch.no_grad():
         conv.weight.zero_()
-        conv.weight[:oa, :ia] = a.weight
-        conv.weight[oa : oa + ob, ia : ia + ib] = b.weight
-        for c in range(2):
-            conv.weight[oa + ob + c, c if first else ia + ib + c, k // 2] = 1.0
-        assert conv.bias is not None
         conv.bias.zero_()
-        conv.bias[:oa] = a.bias if a.bias is not None else 0.0
-        conv.bias[oa : oa + ob] = b.bias if b.bias is not None else 0.0
+        for g, trained in enumerate((a, b)):
+            out = g * (features + 1)
+            conv.weight[out : out + features, : trained.in_channels] = trained.weight
+            conv.weight[out + features, width - 1, k // 2] = 1.0  # the profile: the group's last input
+            conv.bias[out : out + features] = trained.bias if trained.bias is not None else 0.0
     return conv
 
 
@@ -78,8 +76,7 @@ class _DeployedAxial(nn.Module):
         self.along_cols = block.along_cols
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
-        cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
+        rows, cols = axial_pools(x)
         # the pooled terms first: their full-size sum is what the 1 x 1 convolution adds onto
         # (one fused node under onnxruntime, tactile_learn.onnx_fuse)
         return torch.relu(self.own(x) + (self.along_rows(rows) + self.along_cols(cols)))
@@ -116,10 +113,9 @@ class DeployedStripNet(nn.Module):
         layers: list[nn.Module] = []
         for k, (ra, ca) in enumerate(zip(cross.row_encoder, cross.col_encoder, strict=True)):
             if isinstance(ra, nn.Conv1d) and isinstance(ca, nn.Conv1d):
-                # the first layer reads the two profiles; every layer carries them through to the
-                # projections (non-negative: the ReLUs keep them), so no Concat joins them again
-                width = (1, 1) if k == 0 else (enc, enc)
-                layers += [_block_diagonal_conv1d(ra, ca, width, first=k == 0), nn.ReLU()]
+                # rows and columns as two groups of one convolution; every layer carries the profiles
+                # through to the projections (non-negative: the ReLUs keep them): no Concat joins them
+                layers += [_grouped_conv1d(ra, ca, first=k == 0), nn.ReLU()]
         self.encoder = nn.Sequential(*layers)
         self._projections(net, enc, hidden)
         self.hidden = hidden
@@ -154,16 +150,15 @@ class DeployedStripNet(nn.Module):
         with torch.no_grad():
             row_w[:, enc, 0] += phys[:, 2]
             col_w[:, enc, 0] += phys[:, 3]
-        # two projections of [enc_row, enc_col, raw_row, raw_col] (B, 2 enc + 2, N) -> (B, H, N) each
+        # two projections of the encoder's [enc_row, raw_row, enc_col, raw_col] (B, 2 enc + 2, N) ->
+        # (B, H, N) each: the row projection reads the row group, the column projection the other
         self.project_rows = nn.Conv1d(2 * enc + 2, hidden, 1)
         self.project_cols = nn.Conv1d(2 * enc + 2, hidden, 1, bias=False)
         with torch.no_grad():
             self.project_rows.weight.zero_()
             self.project_cols.weight.zero_()
-            self.project_rows.weight[:, :enc] = row_w[:, :enc]
-            self.project_cols.weight[:, enc : 2 * enc] = col_w[:, :enc]
-            self.project_rows.weight[:, 2 * enc] = row_w[:, enc]
-            self.project_cols.weight[:, 2 * enc + 1] = col_w[:, enc]
+            self.project_rows.weight[:, : enc + 1] = row_w
+            self.project_cols.weight[:, enc + 1 :] = col_w
             assert self.project_rows.bias is not None
             self.project_rows.bias.copy_(cross.row_proj.bias)
         self.physics = nn.Conv2d(2, hidden, 1, bias=False)
