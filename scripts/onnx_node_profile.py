@@ -37,7 +37,7 @@ from tactile_learn.onnx_prune import first_output_graph  # noqa: E402
 from tactile_learn.runtime import OnnxEstimator  # noqa: E402
 
 
-def profile_model(path: Path, calls: int, batch: int = 1, seed: int = 909090) -> dict[str, Any]:
+def profile_model(path: Path, calls: int, batch: int = 1, fuse: bool = True, seed: int = 909090) -> dict[str, Any]:
     """Per node kind: nodes and median us per call of ``batch`` frames; plus the run's per-call total."""
     import onnxruntime as ort
 
@@ -45,7 +45,9 @@ def profile_model(path: Path, calls: int, batch: int = 1, seed: int = 909090) ->
     frames = simulate_shard(estimator.scene_, seed, 0, 64)[estimator._task().input_key].astype(np.float32)
     if batch > 1:
         frames = np.resize(frames, (batch, *frames.shape[1:]))
-    model = fused_model_bytes(first_output_graph(path) or path.read_bytes())  # as predict runs it
+    model = first_output_graph(path) or path.read_bytes()
+    if fuse:  # as predict runs it
+        model = fused_model_bytes(model)
     with tempfile.TemporaryDirectory() as tmp:
         options = estimator._session_options()
         options.enable_profiling = True
@@ -95,12 +97,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("models", nargs="+", type=Path)
     parser.add_argument("--calls", type=int, default=2000)
     parser.add_argument("--batch", type=int, default=1, help="frames per call (1: single frames)")
+    parser.add_argument("--no-fuse", action="store_true", help="the graph as the file holds it (no load-time fusions)")
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     load = os.getloadavg()[0]
     result: dict[str, Any] = {}
     for path in args.models:
-        report = profile_model(path, args.calls, args.batch)
+        report = profile_model(path, args.calls, args.batch, fuse=not args.no_fuse)
         result[str(path)] = report
         print(
             f"{path}: {report['nodes']} nodes, run of {args.batch} frame(s) {report['run_median_us']:.1f} us "

@@ -84,9 +84,10 @@ def axial_pools(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The strongest and the mean features along each row (B, 2C, N, 1) and each column (B, 2C, 1, M).
 
     The column mean is an average pool over the whole column: the same mean, but onnxruntime's
-    ``ReduceMean`` over the middle axis is its slow, strided case (measured, batch 1: 6.5 us against
-    3.6 for ``AveragePool``; batch 1024: 3.9 against 1.0 us per frame of 24 x 16 x 16 features);
-    over the last axis ``ReduceMean`` is the faster one (3.9 against 11.8 us), so rows keep it."""
+    ``ReduceMean`` over the middle axis is its slow, strided case (batch 1: 6.6 us against 3.6 for
+    ``AveragePool``; batch 1024: 3.8 against 0.9 us per frame of 24 x 16 x 16 features); over the
+    last axis ``ReduceMean`` is the faster one (3.8 against 12.2 us), so rows keep it
+    (``scripts/onnx_op_bench.py``, docs/speed.md)."""
     rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
     cols = torch.cat([x.amax(dim=2, keepdim=True), nn.functional.avg_pool2d(x, (x.shape[2], 1))], dim=1)
     return rows, cols
