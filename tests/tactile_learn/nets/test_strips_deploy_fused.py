@@ -19,7 +19,7 @@ ort = pytest.importorskip("onnxruntime")
 import torch  # noqa: E402
 
 from synth.dataset import simulate_shard  # noqa: E402
-from tactile_learn.export import to_onnx  # noqa: E402
+from tactile_learn.export import parity_check, to_onnx  # noqa: E402
 from tactile_learn.methods import shipped_models  # noqa: E402
 from tactile_learn.nets.strips_general import GeneralStripNet, GeneralStripNetWithResidual  # noqa: E402
 from tactile_learn.onnx_fuse import fused_model_bytes  # noqa: E402
@@ -59,6 +59,9 @@ def test_the_exported_strip_graph_fused_matches_float64_torch(name: str, tmp_pat
     fused = fused_model_bytes(plain)
     before, after = onnx.load_from_string(plain), onnx.load_from_string(fused)
     blocks = len(trained.net.blocks)
+    # the export's parity check covers the graph as the runtime runs it, fused
+    parity = parity_check(graph, path, frames[:8])
+    assert max(parity["rel_err_b1"], parity["rel_err_b7"]) <= 1e-5
     # the softplus, the first crossing features and every mixing block
     assert [n.op_type for n in after.graph.node].count("FusedConv") == blocks + 1
     assert len(after.graph.node) == len(before.graph.node) - 2 * (blocks + 1) - 2
