@@ -48,6 +48,7 @@ import json  # noqa: E402
 import sys  # noqa: E402
 from collections.abc import Callable  # noqa: E402
 from functools import partial  # noqa: E402
+from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -62,16 +63,23 @@ from tactile_learn.timing import interleaved_times, summary_us, timed  # noqa: E
 TASKS = ("strips", "fsr", "thermal", "capacitive")
 
 
-def methods_of(task_name: str, scene: Scene) -> dict[str, Any]:
-    """Every classical method and every shipped model of ``scene``'s sensor (1 thread)."""
+def methods_of(task_name: str, scene: Scene, before: Path | None = None) -> dict[str, Any]:
+    """Every classical method and every shipped model of ``scene``'s sensor (1 thread); with
+    ``before``, also every model of the task in that folder, run as the runtime ran it before the
+    load-time fusions (``fuse=False``; e.g. main's models beside re-exported ones, in one run)."""
     task = get_task(task_name)
     found: dict[str, Any] = {name: factory(scene) for name, factory in task.classical_methods().items()}
-    for name, path in sorted(shipped_models(task_name).items()):
+    models = [(f"{name}.onnx", path, True) for name, path in sorted(shipped_models(task_name).items())]
+    if before is not None:
+        models += [(f"{p.name} (before)", p, False) for p in sorted(before.glob("*.onnx"))]
+    for label, path, fuse in models:
         card = read_card(path)
+        if card["task"] != task_name:
+            continue
         if card["scene_digest"] == scene.digest:
-            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1).prepare()
+            found[label] = OnnxEstimator(path, threads=1, fuse=fuse).prepare()
         elif _same_sensor(task_name, card["scene"], scene):
-            found[f"{name}.onnx"] = OnnxEstimator(path, threads=1, scene=scene).prepare()
+            found[label] = OnnxEstimator(path, threads=1, scene=scene, fuse=fuse).prepare()
     return found
 
 
@@ -263,6 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--stream-frames", type=int, default=2000)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--skin-frames", type=int, default=300)
+    parser.add_argument("--before", type=Path, default=None, help="models (cards beside) to time unfused too")
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     load_before = os.getloadavg()[0]
@@ -272,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
         data = _bench_data(task_name, None, args.frames, None)
         frames = np.asarray(task.latency_inputs(data), dtype=np.float32)
         calls: dict[str, Callable[[np.ndarray], Any]] = {}
-        for name, est in methods_of(task_name, load_scene(task.default_scene)).items():
+        for name, est in methods_of(task_name, load_scene(task.default_scene), args.before).items():
             calls[name] = est.predict
             if not args.no_stream:
                 from tactile_learn.frame_stream import FrameStream

@@ -3,6 +3,9 @@ load: rounds of ``--per-round`` calls per method, repeated, median per call over
 the load average before and after (latency floors are measured on a quiet machine, load < 1).
 
     python scripts/strips_latency.py --rounds 200 --json results/strips_latency.json
+
+``--before DIR`` times the same models from ``DIR`` (e.g. main's, beside re-exported ones) as the
+runtime ran them before the load-time fusions (``OnnxEstimator(fuse=False)``), in the same rounds.
 """
 
 from __future__ import annotations
@@ -10,11 +13,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from pathlib import Path
 
 from synth.dataset import simulate_shard
 from synth.scene import load_scene
 from tactile_learn.bench import record_run
 from tactile_learn.methods import resolve_method
+from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.timing import interleaved_times, summary_us
 
@@ -24,6 +29,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=200)
     parser.add_argument("--per-round", type=int, default=20)
     parser.add_argument("--models", nargs="+", default=["strips16", "strips16_spheres"])
+    parser.add_argument(
+        "--before", type=Path, default=None, help="a folder with the same models to time beside them, unfused"
+    )
     parser.add_argument("--json", default=None)
     args = parser.parse_args(argv)
     scene = load_scene("strips16")
@@ -31,6 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     methods = {"intersection": resolve_method("strips", "intersection", scene)}
     for name in args.models:
         methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
+        if args.before is not None:  # the runtime before the load-time fusions, on that folder's graph
+            methods[f"{name} (before)"] = OnnxEstimator(args.before / f"{name}.onnx", threads=1, fuse=False).prepare()
     methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1).prepare()
     load_before = os.getloadavg()
     calls = {name: est.predict for name, est in methods.items()}

@@ -82,6 +82,7 @@ class OnnxEstimator(Estimator):
         scene: Scene | None = None,
         backend: str = "onnxruntime",
         card: dict[str, Any] | None = None,
+        fuse: bool = True,
     ) -> None:
         self.path = path
         self.threads = threads
@@ -91,6 +92,9 @@ class OnnxEstimator(Estimator):
         #: the card as :func:`read_card` returned it, when the caller has read it already (the method
         #: loader reads each card once); ``None``: read beside ``path``
         self.card = card
+        #: run the graph with onnxruntime's fusions the exporter leaves out (:mod:`tactile_learn.onnx_fuse`:
+        #: the same function in fewer nodes; the file on disk is never changed); False: the file's graph
+        self.fuse = fuse
         self.name = Path(path).name
 
     def prepare(self) -> OnnxEstimator:
@@ -212,7 +216,9 @@ class OnnxEstimator(Estimator):
         options = self._session_options()
         card = self.card_
         try:
-            session = ort.InferenceSession(str(self.path), sess_options=options, providers=["CPUExecutionProvider"])
+            session = ort.InferenceSession(
+                self._fused(Path(self.path).read_bytes()), sess_options=options, providers=["CPUExecutionProvider"]
+            )
         except Exception as exc:  # onnxruntime raises its own untyped errors for corrupt graphs
             raise ModelError(f"{self.path}: onnxruntime cannot load the model ({str(exc).splitlines()[0]})") from None
         meta = session.get_modelmeta().custom_metadata_map.get(METADATA_KEY)
@@ -248,7 +254,21 @@ class OnnxEstimator(Estimator):
             return self.session_
         import onnxruntime as ort
 
-        return ort.InferenceSession(pruned, sess_options=self._session_options(), providers=["CPUExecutionProvider"])
+        return ort.InferenceSession(
+            self._fused(pruned), sess_options=self._session_options(), providers=["CPUExecutionProvider"]
+        )
+
+    def _fused(self, model: bytes) -> bytes:
+        """``model`` with :func:`~tactile_learn.onnx_fuse.fused_model_bytes`' rewrites where
+        :attr:`fuse` asks for them and the ``onnx`` package is installed; else as it is."""
+        from tactile_learn.onnx_fuse import fused_model_bytes
+
+        if not self.fuse:
+            return model
+        try:
+            return fused_model_bytes(model)
+        except Exception:  # no onnx package, or bytes it cannot parse: onnxruntime's own load reports those
+            return model
 
     def predict(self, X: np.ndarray) -> np.ndarray:
         """The first output (a classifier's: the most probable label, int64; see :meth:`predict_proba`).

@@ -12,7 +12,7 @@ from torch import nn
 from synth.scene import Scene
 from synth.sensors.strips import StripSensor
 
-__all__ = ["SIZES", "AxialBlock", "StripLoads", "context_mlp", "strip_encoder"]
+__all__ = ["SIZES", "AxialBlock", "StripLoads", "axial_pools", "context_mlp", "strip_encoder"]
 
 #: size -> (strip encoder channels, crossing channels, context width, mixing blocks) of
 #: architectures 1 and 3
@@ -38,13 +38,21 @@ class StripLoads(nn.Module):
         self.r0 = float(piezo.strip_resistance_ohm)
         segments = np.concatenate([np.full(g.n_rows, g.n_cols), np.full(g.n_cols, g.n_rows)]).astype(np.float32)
         self.register_buffer("segments", torch.from_numpy(segments))
+        # the divider voltage v_unloaded + (volts - offset) / gain, clamped to (0, supply) as the
+        # numpy inverse clamps it (outside, it is not physical), with the clamp moved onto the
+        # readings (gain > 0 keeps the bounds' order) and 1 / gain into the numerator below:
+        # ``clamp(volts, lo, hi) + shift`` is the divider voltage times the gain
+        self.shift = self.gain * self.v_unloaded - self.offset
+        self.volts_lo = self.gain * 1e-9 * self.supply - self.shift
+        self.volts_hi = self.gain * self.supply * (1 - 1e-9) - self.shift
+        # the segment's conductance share 1 - R / r0, R = reference (supply / divider - 1)
+        self.share_at_infinity = 1.0 + self.reference / self.r0
+        self.share_numerator = self.reference * self.supply / self.r0 * self.gain
 
     def forward(self, volts: torch.Tensor) -> torch.Tensor:
-        divider = self.v_unloaded + (volts - self.offset) / self.gain
-        # same clamps as the numpy inverse: a divider voltage outside (0, supply) is not physical
-        divider = divider.clamp(1e-9 * self.supply, self.supply * (1 - 1e-9))
-        resistance = self.reference * (self.supply / divider - 1.0)
-        return (1.0 - resistance / self.r0).clamp(0.0, 1.0) * self.segments
+        # the same function as the readout's formula step by step, in six graph nodes instead of twelve
+        divider = volts.clamp(self.volts_lo, self.volts_hi) + self.shift
+        return (self.share_at_infinity - self.share_numerator / divider).clamp(0.0, 1.0) * self.segments
 
 
 class AxialBlock(nn.Module):
@@ -66,9 +74,23 @@ class AxialBlock(nn.Module):
         self.act = nn.ReLU()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
-        cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
-        return self.act(x + self.own(x) + self.along_rows(rows) + self.along_cols(cols))
+        rows, cols = axial_pools(x)
+        # summed so that the 1 x 1 convolution adds onto one full-size tensor: the same function, and
+        # one fused node under onnxruntime (tactile_learn.onnx_fuse) instead of a Conv, Add and ReLU
+        return self.act(self.own(x) + (x + (self.along_rows(rows) + self.along_cols(cols))))
+
+
+def axial_pools(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The strongest and the mean features along each row (B, 2C, N, 1) and each column (B, 2C, 1, M).
+
+    The column mean is an average pool over the whole column: the same mean, but onnxruntime's
+    ``ReduceMean`` over the middle axis is its slow, strided case (batch 1: 6.6 us against 3.6 for
+    ``AveragePool``; batch 1024: 3.8 against 0.9 us per frame of 24 x 16 x 16 features); over the
+    last axis ``ReduceMean`` is the faster one (3.8 against 12.2 us), so rows keep it
+    (``scripts/onnx_op_bench.py``, docs/speed.md)."""
+    rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
+    cols = torch.cat([x.amax(dim=2, keepdim=True), nn.functional.avg_pool2d(x, (x.shape[2], 1))], dim=1)
+    return rows, cols
 
 
 def strip_encoder(channels: int) -> nn.Sequential:

@@ -90,11 +90,12 @@ class StripNet(nn.Module):
         col_feat = torch.cat([self.col_encoder(cols.unsqueeze(1)), cols.unsqueeze(1)], dim=1)  # (B, C+1, M)
         total = 0.5 * (rows.sum(dim=1) + cols.sum(dim=1)).clamp_min(1e-3)
         product = (rows.unsqueeze(2) * cols.unsqueeze(1) / total[:, None, None]).unsqueeze(1)  # classical estimate
-        x = (
+        # the convolution last, onto one full-size sum: one fused node under onnxruntime
+        # (tactile_learn.onnx_fuse)
+        x = self.product_proj(product) + (
             self.row_proj(row_feat).unsqueeze(3)
             + self.col_proj(col_feat).unsqueeze(2)
             + self.context(loads)[:, :, None, None]
-            + self.product_proj(product)
         )
         x = self.blocks(torch.relu(x))
         out = nn.functional.softplus(self.head(x).squeeze(1), beta=4.0)

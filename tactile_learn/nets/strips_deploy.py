@@ -31,27 +31,31 @@ from torch import nn
 
 from synth.errors import ModelError
 from synth.scene import Scene
-from tactile_learn.nets.strip_blocks import law_gain
+from tactile_learn.nets.strip_blocks import axial_pools, law_gain
 from tactile_learn.nets.strips_consistent import ConsistencyStep
 from tactile_learn.nets.strips_general import MAX_SHARE, GeneralStripNet, StripForward, StripResidual, law_inverse
 
 __all__ = ["DeployedStripNet", "deploy"]
 
 
-def _block_diagonal_conv1d(a: Any, b: Any, groups_in: tuple[int, int]) -> nn.Conv1d:
-    """One Conv1d computing ``a`` on the first ``groups_in[0]`` input channels and ``b`` on the
-    next ``groups_in[1]``, outputs stacked (zeros across)."""
-    ia, ib = groups_in
-    oa, ob = a.out_channels, b.out_channels
+def _grouped_conv1d(a: Any, b: Any, first: bool) -> nn.Conv1d:
+    """One Conv1d of two groups, rows then columns: group 0 computes ``a``, group 1 ``b`` (no
+    multiplications by the zeros of a block-diagonal matrix), and each group passes its strip
+    profile through unchanged as its last channel (a 1 at the kernel's centre: exact). A group's
+    channels: the layer's features, then the profile; the first layer reads the profiles alone."""
     k = a.kernel_size[0]
-    conv = nn.Conv1d(ia + ib, oa + ob, k, padding=a.padding)
+    features = a.out_channels
+    width = 1 if first else features + 1  # input channels per group
+    conv = nn.Conv1d(2 * width, 2 * (features + 1), k, padding=a.padding, groups=2)
+    assert conv.bias is not None
     with torch.no_grad():
         conv.weight.zero_()
-        conv.weight[:oa, :ia] = a.weight
-        conv.weight[oa:, ia:] = b.weight
-        assert conv.bias is not None
-        conv.bias[:oa] = a.bias if a.bias is not None else 0.0
-        conv.bias[oa:] = b.bias if b.bias is not None else 0.0
+        conv.bias.zero_()
+        for g, trained in enumerate((a, b)):
+            out = g * (features + 1)
+            conv.weight[out : out + features, : trained.in_channels] = trained.weight
+            conv.weight[out + features, width - 1, k // 2] = 1.0  # the profile: the group's last input
+            conv.bias[out : out + features] = trained.bias if trained.bias is not None else 0.0
     return conv
 
 
@@ -72,9 +76,10 @@ class _DeployedAxial(nn.Module):
         self.along_cols = block.along_cols
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        rows = torch.cat([x.amax(dim=3, keepdim=True), x.mean(dim=3, keepdim=True)], dim=1)
-        cols = torch.cat([x.amax(dim=2, keepdim=True), x.mean(dim=2, keepdim=True)], dim=1)
-        return torch.relu(self.own(x) + self.along_rows(rows) + self.along_cols(cols))
+        rows, cols = axial_pools(x)
+        # the pooled terms first: their full-size sum is what the 1 x 1 convolution adds onto
+        # (one fused node under onnxruntime, tactile_learn.onnx_fuse)
+        return torch.relu(self.own(x) + (self.along_rows(rows) + self.along_cols(cols)))
 
 
 class DeployedStripNet(nn.Module):
@@ -84,6 +89,7 @@ class DeployedStripNet(nn.Module):
     before the step, as ``GeneralStripNetWithResidual`` reports it."""
 
     total_weights: torch.Tensor
+    total_bias: torch.Tensor
     diff_weights: torch.Tensor
     half_weights: torch.Tensor
     sums: torch.Tensor
@@ -107,8 +113,9 @@ class DeployedStripNet(nn.Module):
         layers: list[nn.Module] = []
         for k, (ra, ca) in enumerate(zip(cross.row_encoder, cross.col_encoder, strict=True)):
             if isinstance(ra, nn.Conv1d) and isinstance(ca, nn.Conv1d):
-                width = (1, 1) if k == 0 else (enc, enc)
-                layers += [_block_diagonal_conv1d(ra, ca, width), nn.ReLU()]
+                # rows and columns as two groups of one convolution; every layer carries the profiles
+                # through to the projections (non-negative: the ReLUs keep them): no Concat joins them
+                layers += [_grouped_conv1d(ra, ca, first=k == 0), nn.ReLU()]
         self.encoder = nn.Sequential(*layers)
         self._projections(net, enc, hidden)
         self.hidden = hidden
@@ -143,16 +150,15 @@ class DeployedStripNet(nn.Module):
         with torch.no_grad():
             row_w[:, enc, 0] += phys[:, 2]
             col_w[:, enc, 0] += phys[:, 3]
-        # two projections of [enc_row, enc_col, raw_row, raw_col] (B, 2 enc + 2, N) -> (B, H, N) each
+        # two projections of the encoder's [enc_row, raw_row, enc_col, raw_col] (B, 2 enc + 2, N) ->
+        # (B, H, N) each: the row projection reads the row group, the column projection the other
         self.project_rows = nn.Conv1d(2 * enc + 2, hidden, 1)
         self.project_cols = nn.Conv1d(2 * enc + 2, hidden, 1, bias=False)
         with torch.no_grad():
             self.project_rows.weight.zero_()
             self.project_cols.weight.zero_()
-            self.project_rows.weight[:, :enc] = row_w[:, :enc]
-            self.project_cols.weight[:, enc : 2 * enc] = col_w[:, :enc]
-            self.project_rows.weight[:, 2 * enc] = row_w[:, enc]
-            self.project_cols.weight[:, 2 * enc + 1] = col_w[:, enc]
+            self.project_rows.weight[:, : enc + 1] = row_w
+            self.project_cols.weight[:, enc + 1 :] = col_w
             assert self.project_rows.bias is not None
             self.project_rows.bias.copy_(cross.row_proj.bias)
         self.physics = nn.Conv2d(2, hidden, 1, bias=False)
@@ -209,7 +215,9 @@ class DeployedStripNet(nn.Module):
         is_row = (torch.arange(strips) < n).to(torch.float32)
         self.register_buffer("diff_weights", 2.0 * is_row - 1.0)
         self.register_buffer("half_weights", torch.full((strips,), 0.5))
-        self.register_buffer("total_weights", torch.full((strips, 1), 0.5))
+        # the frame total as one Gemm (weights and the floor as its bias), not a MatMul and an Add
+        self.register_buffer("total_weights", torch.full((1, strips), 0.5))
+        self.register_buffer("total_bias", torch.tensor([self.total_floor], dtype=torch.float32))
         self.balance_floor = residual.floor
 
     def forward(self, readings: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -217,18 +225,18 @@ class DeployedStripNet(nn.Module):
         loads = (self.c0 - self.numerator / (readings.clamp(self.v_lo, self.v_hi) + self.v_shift)).clamp(
             0.0, self.segments
         )
-        total = loads @ self.total_weights + self.total_floor  # (B, 1)
+        total = nn.functional.linear(loads, self.total_weights, self.total_bias)  # (B, 1)
         shape = loads / total
         context = self.context(torch.cat([shape, torch.log(total)], dim=1))  # (B, H)
         profiles = shape.reshape(-1, 2, n)  # rows and columns as the two channels of one sequence
-        features = torch.cat([self.encoder(profiles), profiles], dim=1)
+        features = self.encoder(profiles)  # the encoder's features and the profiles carried through
         row_terms = self.project_rows(features) + context.unsqueeze(2)  # (B, H, N)
         col_terms = self.project_cols(features)
         rows = shape[:, :n].reshape(-1, 1, n, 1)
         cols = shape[:, n:].reshape(-1, 1, 1, n)
         product = rows * cols  # (B, 1, N, M)
         physics = torch.cat([product, torch.minimum(rows, cols)], dim=1)
-        x = torch.relu(row_terms.unsqueeze(3) + col_terms.unsqueeze(2) + self.physics(physics))
+        x = torch.relu(self.physics(physics) + (row_terms.unsqueeze(3) + col_terms.unsqueeze(2)))
         x = self.blocks(x)
         base = product  # the classical estimate / (slope * total): the linear base
         if self.law_base:  # the law's inverse of the share (exponent 1: three nodes, no power)
