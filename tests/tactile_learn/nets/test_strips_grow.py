@@ -22,19 +22,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
 import strips_grow
 
 
-def _small_source(folder: Path) -> Path:
-    """A size-small general network with random weights (every layer, the head too, so that each
+def _small_source(folder: Path, size: str = "small") -> Path:
+    """A general network of ``size`` (default small) with random weights (every layer, the head too, so that each
     one shapes the map) and the shipped default's statistics, with its scene: the source to grow."""
     shipped = load_weights("models/strips16.pt")
     torch.manual_seed(7)
-    net = GeneralStripNet(load_scene("strips16"), shipped["stats"], "small")
+    net = GeneralStripNet(load_scene("strips16"), shipped["stats"], size)
     with torch.no_grad():
         net.head.weight.normal_(0.0, 0.1)
-    path = folder / "small.pt"
+    path = folder / f"{size}.pt"
     scene = load_scene("strips16").to_dict()
     save_torch(
         path,
-        {"task": "strips", "size": "small", "scene": scene, "stats": shipped["stats"], "state_dict": net.state_dict()},
+        {"task": "strips", "size": size, "scene": scene, "stats": shipped["stats"], "state_dict": net.state_dict()},
     )
     return path
 
@@ -92,3 +92,30 @@ def test_only_the_number_of_blocks_may_grow(tmp_path: Path) -> None:
         strips_grow.main([str(small), "--size", "large", "--out", str(tmp_path / "x.pt")])
     with pytest.raises(ConfigError, match="fewer mixing blocks"):
         strips_grow.grow(load_weights(small)["state_dict"], "small", "deep")
+
+
+def test_the_wider_context_computes_what_the_trained_one_does_and_can_learn(tmp_path: Path) -> None:
+    """context384_consistent from a wide_consistent network: the added context units change nothing
+    until trained, and the weights reading them have a gradient."""
+    out, source_path = tmp_path / "context.pt", _small_source(tmp_path, "wide_consistent")
+    assert strips_grow.main([str(source_path), "--size", "context384_consistent", "--out", str(out)]) == 0
+    scene = load_scene("strips16")
+    grown = build_net(load_weights(out), scene)  # strict load: 384 context units
+    source = build_net(load_weights(source_path), scene)
+    assert grown.context[2].weight.shape == (384, 384) and source.context[2].weight.shape == (192, 192)
+    assert grown.consistency is not None
+    readings = torch.from_numpy(simulate_shard(scene, 4, 0, 32)["readings"])
+    with torch.inference_mode():
+        np.testing.assert_allclose(grown(readings).numpy(), source(readings).numpy(), rtol=1e-5, atol=1e-4)
+    grown.train()
+    grown(readings).pow(2).mean().backward()
+    assert float(grown.context[4].weight.grad[:, 192:].abs().sum()) > 0.0
+
+
+def test_two_dimensions_at_once_are_refused(tmp_path: Path) -> None:
+    source = _small_source(tmp_path, "wide_consistent")
+    with pytest.raises(ConfigError, match="alone"):
+        strips_grow.main([str(source), "--size", "large", "--out", str(tmp_path / "x.pt")])
+    with pytest.raises(ConfigError, match="fewer than the source"):
+        state = load_weights(source)["state_dict"]
+        strips_grow.widen_context(state, {**state, "context.2.weight": state["context.2.weight"][:96, :96]})
