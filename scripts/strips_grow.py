@@ -131,6 +131,8 @@ def main(argv: list[str] | None = None) -> int:
         torch.manual_seed(args.seed)
         fresh = GeneralStripNet(weights_scene(saved), saved["stats"], args.size).state_dict()
         state = (widen if widened == [1] else widen_context)(saved["state_dict"], fresh)
+    if "scene" not in saved:  # a shipped NAME.pt keeps its scene in the card: train --init needs it in the file
+        saved = {**saved, "scene": weights_scene(saved).to_dict()}
     write_resized(saved, args.size, state, args.out, "grown_from", args.source)
     return 0
 

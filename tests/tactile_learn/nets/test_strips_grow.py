@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -14,8 +15,8 @@ import torch
 
 from synth.dataset import simulate_shard
 from synth.errors import ConfigError
-from synth.scene import load_scene
-from tactile_learn.checkpoints import build_net, load_weights, save_torch
+from synth.scene import load_scene, parse_scene
+from tactile_learn.checkpoints import build_net, load_torch, load_weights, save_torch
 from tactile_learn.nets.strips_general import GeneralStripNet
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "scripts"))
@@ -119,3 +120,19 @@ def test_two_dimensions_at_once_are_refused(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="fewer than the source"):
         state = load_weights(source)["state_dict"]
         strips_grow.widen_context(state, {**state, "context.2.weight": state["context.2.weight"][:96, :96]})
+
+
+def test_growing_a_shipped_model_writes_its_scene_for_train_init(tmp_path: Path) -> None:
+    """A shipped NAME.pt keeps its scene in the card beside it; the grown file must carry it itself,
+    and the grown network computes what the shipped one does."""
+    assert "scene" not in load_torch("models/strips16.pt")
+    out = tmp_path / "wide28.pt"
+    assert strips_grow.main(["models/strips16.pt", "--size", "wide28_consistent", "--out", str(out)]) == 0
+    card = json.loads(Path("models/strips16.json").read_text())
+    assert parse_scene(load_torch(out)["scene"]).digest == card["scene_digest"]
+    scene = load_scene("strips16")
+    readings = torch.from_numpy(simulate_shard(scene, 5, 0, 16)["readings"])
+    with torch.inference_mode():
+        expected = build_net(load_weights("models/strips16.pt"), scene)(readings).numpy()
+        # built from the file alone: its own scene
+        np.testing.assert_allclose(build_net(load_weights(out))(readings).numpy(), expected, atol=1e-4)
