@@ -6,10 +6,13 @@ one does, so training only adds:
   on the non-negative features it reads);
 - added crossing channels (a wider size) start with fresh random weights *into* them and zero
   weights *out of* them (no trained channel, and not the head, reads them yet): their features are
-  alive, so the loss has a gradient on the weights that will read them.
+  alive, so the loss has a gradient on the weights that will read them;
+- a wider global context (more hidden units in its MLP) the same way: fresh weights into the added
+  units, zero weights out of them.
 
     python scripts/strips_grow.py models/strips16.pt --size deep --out runs/deep_init.pt
     python scripts/strips_grow.py models/strips16.pt --size wide --out runs/wide_init.pt
+    python scripts/strips_grow.py models/strips16.pt --size context384_consistent --out runs/context_init.pt
     tactile-learn train --task strips --size wide --init runs/wide_init.pt ...
 
 A size that only adds the consistency step (``wide`` -> ``wide_consistent``) takes the weights as
@@ -28,7 +31,7 @@ from tactile_learn.checkpoints import weights_scene
 from tactile_learn.nets.strips_general import SIZES, GeneralStripNet
 from tactile_learn.train_resize import load_general_source, write_resized
 
-__all__ = ["grow", "main", "widen"]
+__all__ = ["grow", "main", "widen", "widen_context"]
 
 #: the layers writing crossing channels (output rows) and reading them (input columns)
 _WRITERS = ("crossings.row_proj.weight", "crossings.row_proj.bias", "crossings.col_proj.weight")
@@ -69,6 +72,28 @@ def widen(state: dict[str, torch.Tensor], fresh: dict[str, torch.Tensor]) -> dic
     return out
 
 
+def widen_context(state: dict[str, torch.Tensor], fresh: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """``state`` inside ``fresh``, a network whose global context MLP is wider (same crossing
+    channels and blocks): the added hidden units take fresh weights from their inputs and zero
+    weights into every trained unit and into the context's output, so the map is unchanged."""
+    out = {k: v.clone() for k, v in state.items()}
+    old, new = int(state["context.2.weight"].shape[0]), int(fresh["context.2.weight"].shape[0])
+    if new < old:
+        raise ConfigError(f"the target's context has {new} units, fewer than the source's {old}")
+    for layer in ("context.0", "context.2"):  # rows: units; the added ones read their inputs fresh
+        weight, bias = fresh[f"{layer}.weight"].clone(), fresh[f"{layer}.bias"].clone()
+        columns = state[f"{layer}.weight"].shape[1]
+        if layer == "context.2":
+            weight[:old, old:] = 0.0  # trained units do not read the added ones
+        weight[:old, :columns] = state[f"{layer}.weight"]
+        bias[:old] = state[f"{layer}.bias"]
+        out[f"{layer}.weight"], out[f"{layer}.bias"] = weight, bias
+    head = torch.zeros_like(fresh["context.4.weight"])
+    head[:, :old] = state["context.4.weight"]  # the context's output does not read the added units yet
+    out["context.4.weight"] = head
+    return out
+
+
 def grow(state: dict[str, torch.Tensor], size: str, source_size: str) -> dict[str, torch.Tensor]:
     """The state dict of a ``size`` network: ``state`` (of a ``source_size`` one) plus identity blocks."""
     spec, source = SIZES[size], SIZES[source_size]
@@ -93,17 +118,21 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     saved = load_general_source(args.source, args.size)
     spec, source = SIZES[args.size], SIZES[str(saved["size"])]
-    if spec[1] == source[1]:
+    if spec[1:3] == source[1:3]:
         state = grow(saved["state_dict"], args.size, str(saved["size"]))
     else:
-        if spec[0] != source[0] or spec[2:] != source[2:]:
+        # one dimension at a time: crossing channels or the context's width, nothing else
+        widened = [i for i in range(5) if spec[i] != source[i]]
+        if widened not in ([1], [2]):
             raise ConfigError(
-                f"--size {args.size}: only the number of mixing blocks or (alone) of crossing channels may "
-                f"differ from {saved['size']}"
+                f"--size {args.size}: only the number of mixing blocks, or (alone) of crossing channels or of "
+                f"the context's units may differ from {saved['size']}"
             )
         torch.manual_seed(args.seed)
-        fresh = GeneralStripNet(weights_scene(saved), saved["stats"], args.size)
-        state = widen(saved["state_dict"], fresh.state_dict())
+        fresh = GeneralStripNet(weights_scene(saved), saved["stats"], args.size).state_dict()
+        state = (widen if widened == [1] else widen_context)(saved["state_dict"], fresh)
+    if "scene" not in saved:  # a shipped NAME.pt keeps its scene in the card: train --init needs it in the file
+        saved = {**saved, "scene": weights_scene(saved).to_dict()}
     write_resized(saved, args.size, state, args.out, "grown_from", args.source)
     return 0
 

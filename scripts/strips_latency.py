@@ -3,7 +3,9 @@ load: rounds of ``--per-round`` calls per method, repeated, median per call over
 the load average before and after (latency floors are measured on a quiet machine, load < 1).
 
     python scripts/strips_latency.py --rounds 200 --json results/strips_latency.json
+    python scripts/strips_latency.py --models strips16 runs/NAME/model.onnx --rounds 200 --per-round 10
 
+``--models`` takes shipped names or the paths of exported ``.onnx`` files with their card beside them.
 ``--before DIR`` times the same models from ``DIR`` (e.g. main's, beside re-exported ones) as the
 runtime ran them before the load-time fusions (``OnnxEstimator(fuse=False)``), in the same rounds.
 """
@@ -28,7 +30,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rounds", type=int, default=200)
     parser.add_argument("--per-round", type=int, default=20)
-    parser.add_argument("--models", nargs="+", default=["strips16", "strips16_spheres"])
+    parser.add_argument(
+        "--models",
+        nargs="+",
+        default=["strips16", "strips16_spheres"],
+        help="shipped names or .onnx paths (card beside)",
+    )
     parser.add_argument(
         "--before", type=Path, default=None, help="a folder with the same models to time beside them, unfused"
     )

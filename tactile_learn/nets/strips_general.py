@@ -64,8 +64,19 @@ SIZES: dict[str, tuple[int, int, int, int, bool]] = {
 SIZES |= {f"{name}_law": spec for name, spec in SIZES.items() if name != "corrected"}
 #: sizes whose map takes one ISRA step through the forward model (``nets.strips_consistent``); the
 #: step has no weights: the wide network's weights load into ``wide_consistent`` as they are
-CONSISTENT_SIZES = frozenset({"wide_consistent"})
 SIZES["wide_consistent"] = SIZES["wide"]
+# larger networks with the step, grown from a trained ``wide_consistent`` one (scripts/strips_grow.py)
+# to test whether the trade between lines and large flat contacts is a capacity limit (docs/strips.md,
+# "More capacity"): 28, 32 or 40 crossing channels, a third mixing block, or a wider global context
+# (per frame, not per crossing: the cheapest capacity at batch 1)
+SIZES |= {
+    "wide28_consistent": (24, 28, 192, 2, False),
+    "wide32_consistent": (24, 32, 192, 2, False),
+    "wide40_consistent": (24, 40, 192, 2, False),
+    "deep_wide_consistent": (24, 24, 192, 3, False),
+    "context384_consistent": (24, 24, 384, 2, False),
+}
+CONSISTENT_SIZES = frozenset(name for name in SIZES if name.endswith("_consistent"))
 
 
 class StripForward(nn.Module):

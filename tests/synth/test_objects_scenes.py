@@ -181,25 +181,35 @@ def drawn(scenes: dict[str, Scene]) -> dict[str, tuple[Contacts, np.ndarray]]:
     return {name: draw(scene, 6000, seed=5) for name, scene in scenes.items()}
 
 
-def test_the_object_scenes_exist_and_share_the_wide_scenes_sensor(scenes: dict[str, Scene]) -> None:
+def assert_wide_sensor(scenes: dict[str, Scene]) -> None:
+    """Every scene is strips16_wide's sensor (a training scene of the same model), outputs and noise."""
     wide = load_scene("strips16_wide")
-    assert len(scenes) >= 8
     for name, scene in scenes.items():
         for part in ("geometry", "layers", "piezo", "readout"):
             assert getattr(scene.sensor, part) == getattr(wide.sensor, part), (name, part)
         assert scene.outputs == wide.outputs and scene.noise == wide.noise, name
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_generates_pressed_frames_below_full_scale(scenes: dict[str, Scene], name: str) -> None:
-    clean = scenes[name].with_noise(False)
-    frames = simulate_shard(clean, seed=11, index=0, size=120)
+def assert_pressed_below_full_scale(scene: Scene, seed: int, size: int = 120) -> None:
+    """Noise-free frames are finite, non-negative, read, and below 0.9 of the ADC's full scale."""
+    clean = scene.with_noise(False)
+    frames = simulate_shard(clean, seed=seed, index=0, size=size)
     readings, pressure = frames["readings"], frames["pressure"]
-    assert readings.shape == (120, 32) and pressure.shape == (120, 16, 16)
+    assert readings.shape == (size, 32) and pressure.shape == (size, 16, 16)
     assert np.isfinite(readings).all() and (pressure >= 0).all()
     assert readings.max() < 0.9 * clean.sensor.readout.full_scale_v
     # nearly every frame is read: a large punch at its lightest force may stay faint
     assert (readings.max(axis=1) > clean.sensor.readout.offset_v + 0.02).mean() > 0.9
+
+
+def test_the_object_scenes_exist_and_share_the_wide_scenes_sensor(scenes: dict[str, Scene]) -> None:
+    assert len(scenes) >= 8
+    assert_wide_sensor(scenes)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_generates_pressed_frames_below_full_scale(scenes: dict[str, Scene], name: str) -> None:
+    assert_pressed_below_full_scale(scenes[name], seed=11)
 
 
 def test_objects_parts_keep_their_arrangement(drawn: dict[str, tuple[Contacts, np.ndarray]]) -> None:
