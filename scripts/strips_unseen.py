@@ -238,6 +238,14 @@ def markdown(result: dict[str, Any], models: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def report(result: dict[str, Any], table: str, json_path: str | None) -> None:
+    """Print the table; with ``json_path``, write the result there and the table beside it (.md)."""
+    print(table)
+    if json_path:
+        atomic_write_json(json_path, result)
+        atomic_write_text(Path(json_path).with_suffix(".md"), table)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument(
@@ -255,11 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     test = get_task("strips").load_eval_data(args.test) if args.test else None
     result = evaluate(load_suite(args.suite), args.models, args.n, args.seeds, test)
     result["command"] = "python scripts/strips_unseen.py " + " ".join(argv if argv is not None else sys.argv[1:])
-    table = markdown(result, args.models)
-    print(table)
-    if args.json:
-        atomic_write_json(args.json, result)
-        atomic_write_text(Path(args.json).with_suffix(".md"), table)
+    report(result, markdown(result, args.models), args.json)
     return 0
 
 
