@@ -87,8 +87,12 @@ def _loss_plot(history: list[dict[str, Any]], path: Path, metric: str) -> bool:
         return False
     epochs = [h["epoch"] for h in history]
     fig, ax = plt.subplots(1, 2, figsize=(9, 3.5))
-    ax[0].plot(epochs, [h["train_loss"] for h in history], marker="o")
-    ax[0].set(xlabel="epoch", ylabel="training loss", yscale="log", title="loss")
+    losses = [h["train_loss"] for h in history]
+    ax[0].plot(epochs, losses, marker="o")
+    # a log axis only where every loss is positive: a loss of zero (a frozen or already-converged run)
+    # cannot be drawn on one
+    scale = "log" if all(loss > 0 for loss in losses) else "linear"
+    ax[0].set(xlabel="epoch", ylabel="training loss", yscale=scale, title="loss")
     ax[1].plot(epochs, [h["val"][metric] for h in history], marker="o", color="C1")
     ax[1].set(xlabel="epoch", ylabel=metric, title=f"validation {metric}")
     fig.tight_layout()
