@@ -26,6 +26,11 @@ from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.timing import interleaved_times, summary_us
 
 
+def before_file_name(model: str) -> str:
+    """The file in ``--before DIR`` that matches a model given by shipped name or by .onnx path."""
+    return Path(model).name if model.endswith(".onnx") else f"{model}.onnx"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rounds", type=int, default=200)
@@ -47,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.models:
         methods[f"{name} (onnxruntime, 1 thread)"] = resolve_method("strips", name, scene, threads=1)
         if args.before is not None:  # the runtime before the load-time fusions, on that folder's graph
-            methods[f"{name} (before)"] = OnnxEstimator(args.before / f"{name}.onnx", threads=1, fuse=False).prepare()
+            before_file = args.before / before_file_name(name)
+            methods[f"{name} (before)"] = OnnxEstimator(before_file, threads=1, fuse=False).prepare()
     methods["strips16 checked (flags + fallback)"] = CheckedStripModel("models/strips16.onnx", threads=1).prepare()
     load_before = os.getloadavg()
     calls = {name: est.predict for name, est in methods.items()}
