@@ -1,6 +1,6 @@
 """Why does a strip model lose an unseen family? Sweep one parameter across the training range's edge.
 
-Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``_unseen2`` to ``_unseen4``) with one
+Each probe is a family of an unseen-shape suite (``strips16_unseen``, ``_unseen2`` to ``_unseen5``) with one
 parameter (or the contact count, or a parameter of the family's object) set to a ladder of values,
 some inside the training scene's range, some beyond it; at every value the model's r against the best
 classical rule on the same fresh frames. A margin that holds inside the training range and falls
@@ -14,6 +14,8 @@ it is not::
         --seed 7777 --json results/strips_unseen3_probe.json
     python scripts/strips_unseen_probe.py --suite strips16_unseen4 strips16 strips16_small --n 300 \
         --seed 7777 --json results/strips_unseen4_probe.json
+    python scripts/strips_unseen_probe.py --suite strips16_unseen5 strips16 strips16_small --n 300 \
+        --seed 7777 --json results/strips_unseen5_probe.json
 """
 
 from __future__ import annotations
@@ -111,6 +113,33 @@ PROBES: dict[str, tuple[str, str, str, tuple[float, ...], dict[str, float]]] = {
     # a card's corner: its edges widened into training's block widths, and its tilt taken away
     "card_width": ("strips16_unseen4", "card_corner", "width_mm", (0.5, 0.8, 1.0, 1.5, 2.5, 4.0), {}),
     "card_tilt": ("strips16_unseen4", "card_corner", "tilt", (-1.0, -0.8, -0.6, -0.3, 0.0), {}),
+    # round 5: the tumbler's rigid base from training's punch radii (up to 15 mm) to the family's, and
+    # without its push off centre; the jar lid's rim and the tape roll's face from training's ring
+    # radii (up to 19 mm) to the family's, and the lid's rim from thick to the family's thin one
+    "tumbler_radius": (
+        "strips16_unseen5",
+        "tumbler_base",
+        "radius_mm",
+        (6.0, 9.0, 12.0, 15.0, 20.0, 25.0, 30.0, 34.0),
+        {},
+    ),
+    "tumbler_tilt": ("strips16_unseen5", "tumbler_base", "tilt", (0.0, 0.3, 0.6), {}),
+    "lid_radius": (
+        "strips16_unseen5",
+        "jar_lid_rim",
+        "radius_mm",
+        (8.0, 11.0, 14.0, 17.0, 19.0, 21.0, 23.0, 25.0, 27.0),
+        {},
+    ),
+    "lid_hole": ("strips16_unseen5", "jar_lid_rim", "hole_fraction", (0.6, 0.75, 0.85, 0.9, 0.94), {}),
+    "tape_radius": ("strips16_unseen5", "tape_roll_flat", "radius_mm", (9.0, 12.0, 15.0, 18.0, 21.0, 24.5), {}),
+    # many parts, from one part up to the family's count (keys and pieces row by row, the racket's
+    # four mains before its crosses, the LEGO brick's walls before its tubes)
+    "keypad_keys": ("strips16_unseen5", "remote_keypad", "count", (1, 2, 3, 4, 6, 8, 10, 12), {}),
+    "chocolate_pieces": ("strips16_unseen5", "chocolate_bar", "count", (1, 2, 4, 6, 8, 10, 12), {}),
+    "guitar_strings": ("strips16_unseen5", "guitar_strings", "count", (1, 2, 3, 4, 5, 6), {}),
+    "racket_strings": ("strips16_unseen5", "tennis_racket_strings", "count", (1, 2, 4, 5, 6, 7), {}),
+    "lego_parts": ("strips16_unseen5", "lego_brick_underside", "count", (2, 4, 5, 7), {}),
 }
 
 

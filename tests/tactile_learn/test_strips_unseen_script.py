@@ -92,3 +92,9 @@ def test_a_probe_can_cut_an_object_down_to_its_first_parts() -> None:
         assert stimuli.object is not None and stimuli.object.offsets_mm == ((0.0, 0.0),)
         (case,) = stimuli.kinds
         assert case.kind == "punch" and case.radius_mm == (value, value)
+
+
+def test_every_probe_ladder_parses_into_one_family_per_value() -> None:
+    for probe, (_, _, parameter, values, _) in strips_unseen_probe.PROBES.items():
+        suite = parse_suite(strips_unseen_probe.probe_suite(probe), f"probe {probe}")
+        assert [f.name for f in suite.families] == [f"{parameter}={v:g}" for v in values], probe
