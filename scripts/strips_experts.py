@@ -17,6 +17,7 @@ every training set.
     python scripts/strips_experts.py plan --data data/experts --runs runs
     python scripts/strips_experts.py router --data data/experts --runs runs --out runs/router
     python scripts/strips_experts.py eval --runs runs --router runs/router --json results/strips_experts.json
+    # the longer variant: the same with --long before the command (runs/expert-long-NAME)
 """
 
 from __future__ import annotations
@@ -114,6 +115,9 @@ ROUTER_FRAMES_PER_FAMILY = 400
 ROUTER_GENERAL_FRAMES = 6000
 TRAIN_SEED, VAL_SEED, ROUTER_SEED = 9301, 9401, 9501
 EPOCHS, LR = 6, 3e-4
+#: a second, longer training of the same experts (the specialists were still improving at 8-32 epochs),
+#: declared before either was evaluated: runs/expert-long-NAME, the router trained on them alike
+LONG_EPOCHS = 24
 ROUTE_MARGIN = 0.02  # an expert is a frame's label only where its r beats the default's by this much
 ROUTE_PROBABILITY = 0.5  # ... and a frame goes to it only where the router is at least this sure
 EXPERTS = tuple(CLUSTERS)
@@ -152,26 +156,31 @@ def write_data(root: Path, log: Any = print) -> None:
     log(f"data in {time.perf_counter() - start:.0f} s")
 
 
-def plan(root: Path, runs: Path) -> list[str]:
-    """The training and export command of every expert."""
+def plan(root: Path, runs: Path, long: bool = False) -> list[str]:
+    """The training and export command of every expert (``long``: the :data:`LONG_EPOCHS` variant)."""
     lines = []
     for name, members in CLUSTERS.items():
-        data = " ".join(str(_folder(root, s, "train")) for s in [*members, GENERAL])
-        run = runs / f"expert-{name}"
+        # the validation family's frames first: training takes its scene from the first folder, and the
+        # validation set must be of that scene
+        ordered = [VALIDATION[name], *(s for s in members if s != VALIDATION[name]), GENERAL]
+        data = " ".join(str(_folder(root, s, "train")) for s in ordered)
+        run = runs / f"expert-{'long-' if long else ''}{name}"
         lines.append(
             f"tactile-learn train --task strips --data {data} --val {_folder(root, VALIDATION[name], 'val')} "
-            f"--out {run} --init models/strips16.pt --lr {LR} --epochs {EPOCHS} --threads 1 --quiet && "
+            f"--out {run} --init models/strips16.pt --lr {LR} --epochs {LONG_EPOCHS if long else EPOCHS} --threads 1 "
+            "--quiet && "
             f"tactile-learn export {run} --out {run}/model.onnx --overwrite"
         )
     return lines
 
 
-def _estimators(runs: Path) -> dict[str, Any]:
+def _estimators(runs: Path, long: bool = False) -> dict[str, Any]:
     from tactile_learn.runtime import OnnxEstimator
 
     found = {"default": OnnxEstimator("models/strips16.onnx", threads=1).prepare()}
     for name in EXPERTS:
-        found[name] = OnnxEstimator(runs / f"expert-{name}" / "model.onnx", threads=1).prepare()
+        run = runs / f"expert-{'long-' if long else ''}{name}"
+        found[name] = OnnxEstimator(run / "model.onnx", threads=1).prepare()
     return found
 
 
@@ -198,10 +207,10 @@ def features(readings: np.ndarray) -> np.ndarray:
     return np.concatenate([share * 16.0, np.log(np.maximum(total, 1e-4))], axis=1).astype(np.float32)
 
 
-def train_router(root: Path, runs: Path, out: Path, log: Any = print) -> dict[str, Any]:
+def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any = print) -> dict[str, Any]:
     import torch
 
-    estimators = _estimators(runs)
+    estimators = _estimators(runs, long)
     folders = sorted(root.glob("*-router"))
     xs, labels, gains = [], [], []
     for folder in folders:
@@ -259,10 +268,10 @@ def train_router(root: Path, runs: Path, out: Path, log: Any = print) -> dict[st
 class RoutedStrips:
     """The mixture at run time: the router's choice per frame, then that expert on its frames."""
 
-    def __init__(self, runs: Path, router: Path, probability: float = ROUTE_PROBABILITY) -> None:
+    def __init__(self, runs: Path, router: Path, probability: float = ROUTE_PROBABILITY, long: bool = False) -> None:
         import onnxruntime as ort
 
-        self.estimators = _estimators(runs)
+        self.estimators = _estimators(runs, long)
         card = json.loads((router / "router.json").read_text())
         self.mean, self.std = np.asarray(card["mean"], np.float32), np.asarray(card["std"], np.float32)
         options = ort.SessionOptions()
@@ -287,13 +296,15 @@ class RoutedStrips:
         return out
 
 
-def evaluate(runs: Path, router: Path, n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
+def evaluate(
+    runs: Path, router: Path, n: int, seeds: list[int], long: bool = False, log: Any = print
+) -> dict[str, Any]:
     from tactile_learn.methods import resolve_method
     from tactile_learn.suites import suite_eval_data
     from tactile_learn.tasks import get_task
 
     task = get_task("strips")
-    routed = RoutedStrips(runs, router)
+    routed = RoutedStrips(runs, router, long=long)
     base = load_scene("strips16")
     methods: dict[str, Any] = {
         "intersection": resolve_method("strips", "intersection", base),
@@ -346,6 +357,7 @@ def evaluate(runs: Path, router: Path, n: int, seeds: list[int], log: Any = prin
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--long", action="store_true", help=f"the {LONG_EPOCHS}-epoch experts (runs/expert-long-NAME)")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("data")
     p.add_argument("--out", default="data/experts")
@@ -366,11 +378,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "data":
         write_data(Path(args.out))
     elif args.command == "plan":
-        print("\n".join(plan(Path(args.data), Path(args.runs))))
+        print("\n".join(plan(Path(args.data), Path(args.runs), args.long)))
     elif args.command == "router":
-        train_router(Path(args.data), Path(args.runs), Path(args.out))
+        train_router(Path(args.data), Path(args.runs), Path(args.out), args.long)
     else:
-        result = evaluate(Path(args.runs), Path(args.router), args.n, args.seeds)
+        result = evaluate(Path(args.runs), Path(args.router), args.n, args.seeds, args.long)
         if args.json:
             Path(args.json).write_text(json.dumps(result, indent=1))
     return 0
