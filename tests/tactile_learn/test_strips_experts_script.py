@@ -11,11 +11,17 @@ from typing import Any
 import numpy as np
 import pytest
 
+from synth.scene import load_scene
 from synth.suite import load_suite
+from tactile_learn.methods import resolve_method
+from tactile_learn.suites import suite_eval_data
+from tactile_learn.tasks import get_task
 from tests.paths import REPO_ROOT
 
 sys.path.insert(0, str(REPO_ROOT / "scripts"))
+import strips_blend_tradeoff
 import strips_experts
+import strips_rule_guard
 
 
 def _sources() -> list[tuple[str, str]]:
@@ -98,3 +104,41 @@ def test_each_frame_goes_to_the_routers_choice_only_when_it_is_sure(monkeypatch:
     expected = np.where(sure >= 5.0, choices, 0)
     assert n == 4
     np.testing.assert_array_equal(maps[:, 0, 0], expected.astype(np.float32))
+
+
+def test_the_flags_threshold_is_the_lowest_that_keeps_both_shares() -> None:
+    guard = strips_rule_guard
+    rng = np.random.default_rng(1)
+    p = rng.uniform(0.0, 1.0, 1001)  # 1001 values: the grid of quantiles holds every one of them
+    groups = rng.permutation(np.repeat([0, 1, 2], [201, 400, 400]))
+    t = guard.choose_threshold(p, groups)
+    assert (p[groups == 1] >= t).mean() <= guard.TWO_SPHERE_FLAG_SHARE
+    assert (p[groups == 2] >= t).mean() <= guard.GENERAL_FLAG_SHARE
+    lower = p[p < t].max()  # the next candidate down breaks a share
+    assert (p[groups == 1] >= lower).mean() > guard.TWO_SPHERE_FLAG_SHARE or (
+        p[groups == 2] >= lower
+    ).mean() > guard.GENERAL_FLAG_SHARE
+
+
+def test_a_losing_frame_is_one_the_rule_answers_better_by_the_margin() -> None:
+    guard = strips_rule_guard
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(0.0, 1.0, (3, 16, 16)).astype(np.float32)
+    noise = rng.normal(0.0, 1.0, (3, 16, 16)).astype(np.float32)
+    good, bad = truth + 0.05 * noise, truth + 3.0 * noise
+    model = np.stack([good[0], bad[1], good[2]])
+    rule = np.stack([bad[0], good[1], good[2]])
+    assert guard.losing(model, rule, truth).tolist() == [False, True, False]
+
+
+def test_the_blend_runs_from_the_model_to_the_rule() -> None:
+    blend = strips_blend_tradeoff
+    task = get_task("strips")
+    data = next(iter(suite_eval_data(load_suite("strips16_ood"), 8, 3).values()))
+    scene = load_scene("strips16")
+    rule = resolve_method("strips", "intersection", scene).predict(data.inputs)
+    model = resolve_method("strips", "projection", scene).predict(data.inputs)  # stands for a network
+    scores = blend.blend_scores(model, rule, data, (0.0, 0.5, 1.0))
+    assert scores[0] == task.metrics(model, data)["pearson_r_mean"]
+    assert scores[2] == task.metrics(rule, data)["pearson_r_mean"]
+    assert scores[1] not in (scores[0], scores[2])
