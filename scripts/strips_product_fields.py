@@ -1,0 +1,151 @@
+"""Product fields for the strip array: a training set of pressure fields ``p(x, y) = f(x) g(y)``, the
+paper's own assumption (the intersection rule is exact for them, up to the cover's blur and noise).
+
+Round 5 of the unseen shapes (docs/strips.md) lost mostly on objects close to that assumption - parallel
+strings, pad grids square to the strips, discs larger than the array - where ``strips16``'s prior departs
+from the outer product although no two-sphere frame competes for those readings. This tests whether
+training on *generic* product fields (no named object: each profile is a sum of random flat or rounded
+bumps, some running off the array, some flat across it) teaches the network to keep the outer product
+where the readings ask for it, without losing the two spheres. Written after round 5 was evaluated, so
+round 5 is **not** a blind test of it (docs/strips.md, "Product fields").
+
+A field is drawn on the array's fine lattice (``samples_per_pitch`` cells per pitch), scaled to a total
+force, and pushed through the strips16 sensor model with its per-frame strip gains, noise and ADC
+(:class:`synth.sensors.strips.sensor.StripModel`); the truth is the sensor model's intersection map. The
+folder is an ordinary dataset (manifest, checksummed shards) whose scene is ``strips16``'s sensor under
+the name ``strips16_product_fields``::
+
+    python scripts/strips_product_fields.py --n 30000 --seed 9603 --out data/products-train
+
+The test, fixed before any training (two shares of product fields, fine-tuned from the shipped weights):
+
+    tactile-learn generate --scene strips16_wide --n 40000 --seed 9601 --out data/pf-wide-train --workers 2
+    tactile-learn generate --scene strips16 --n 20000 --seed 9602 --out data/pf-spheres-train --workers 2
+    tactile-learn generate --scene strips16_wide --n 2000 --seed 9604 --out data/pf-wide-val
+    python scripts/strips_product_fields.py --n 12000 --seed 9605 --out data/products12k-train
+    tactile-learn train --task strips --data data/pf-wide-train data/pf-spheres-train DATA --val data/pf-wide-val \
+        --out runs/RUN --init models/strips16.pt --lr 3e-4 --epochs 8 --threads 1
+
+with DATA = data/products12k-train (RUN = products14, 14 % of frames) and data/products-train
+(RUN = products33, 33 %), then ``tactile-learn export runs/RUN --out runs/RUN/model.onnx`` and
+``scripts/strips_unseen.py`` on the ood suite, rounds 4 and 5, and two spheres. A lead (never shipped from
+this test alone: round 5 is not blind for it) if two spheres >= 0.96, the ood margin >= +0.05 and round 5's
+margin >= 0 with fewer than 10 of 12 families below.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from synth.dataset import FORMAT_VERSION, MANIFEST, _store_shard, _versions
+from synth.io import atomic_write_json
+from synth.scene import Scene, load_scene
+from synth.sensors.strips.sensor import StripModel
+from synth.sensors.strips.stimuli import PressureField
+
+SHARD = 4096
+FORCE_N = (0.5, 8.0)  # the total load of a frame (the wide scene's single contacts reach 10 N)
+BUMPS = (1, 8)  # bumps per profile
+WIDTH_MM = (0.6, 30.0)  # a bump's width (log-uniform): a string to a palm
+FLAT_SHARE = 0.1  # profiles flat across the whole array (a disc or a book larger than the array)
+ROUNDED_SHARE = 0.5  # bumps with a rounded (Hertz-like) section; the rest flat-topped
+
+
+def product_scene() -> Scene:
+    base = load_scene("strips16")
+    return dataclasses.replace(
+        base,
+        name="strips16_product_fields",
+        description="the strips16 sensor under product fields f(x) g(y) (scripts/strips_product_fields.py)",
+    )
+
+
+def profiles(n: int, size: int, h_mm: float, rng: np.random.Generator) -> np.ndarray:
+    """(n, size) non-negative profiles on a lattice of pitch ``h_mm``, each with a positive sum."""
+    x = (np.arange(size) + 0.5) * h_mm
+    side = size * h_mm
+    out = np.zeros((n, size))
+    counts = rng.integers(BUMPS[0], BUMPS[1] + 1, n)
+    for i in range(n):
+        if rng.uniform() < FLAT_SHARE:
+            out[i] = 1.0
+            continue
+        for _ in range(counts[i]):
+            width = math.exp(rng.uniform(math.log(WIDTH_MM[0]), math.log(WIDTH_MM[1])))
+            centre = rng.uniform(-0.25 * width, side + 0.25 * width)
+            amplitude = rng.uniform(0.3, 1.0)
+            u = (x - centre) / (0.5 * width)
+            if rng.uniform() < ROUNDED_SHARE:
+                out[i] += amplitude * np.sqrt(np.clip(1.0 - u * u, 0.0, None))
+            else:
+                out[i] += amplitude * (np.abs(u) <= 1.0)
+        if out[i].sum() <= 0.0:  # every bump between lattice points: one cell
+            out[i, rng.integers(size)] = 1.0
+    return out
+
+
+def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """``n`` frames: readings (B, 32) V and the intersection map (B, 16, 16) kPa."""
+    config = scene.sensor
+    g = config.geometry
+    s = g.samples_per_pitch
+    h_mm = g.pitch_mm / s
+    rows = profiles(n, g.n_rows * s, h_mm, rng)
+    cols = profiles(n, g.n_cols * s, h_mm, rng)
+    field = rows[:, :, None] * cols[:, None, :]
+    force = np.exp(rng.uniform(math.log(FORCE_N[0]), math.log(FORCE_N[1]), n))
+    # kPa = N / mm^2 * 1000: the field's integral over the cells (h^2 mm^2 each) is the force
+    field *= (force * 1000.0 / (field.sum(axis=(1, 2)) * h_mm * h_mm))[:, None, None]
+    model = StripModel(config)
+    gains = np.clip(1.0 + config.piezo.gain_spread * rng.standard_normal((n, 2 * 16)), 0.5, 1.5)
+    stimulus = PressureField.from_field(field.astype(np.float32), config, gains.astype(np.float32))
+    readings = model.forward(stimulus, rng)
+    return {"readings": readings.astype(np.float32), "pressure": model.pressure_map(stimulus).astype(np.float32)}
+
+
+def write(n: int, seed: int, out: Path) -> Path:
+    """The dataset folder (shards seeded per index, manifest last)."""
+    scene = product_scene()
+    out.mkdir(parents=True, exist_ok=True)
+    shards = []
+    for index, start in enumerate(range(0, n, SHARD)):
+        size = min(SHARD, n - start)
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
+        shards.append(_store_shard(out, index, size, draw(scene, size, rng)))
+    manifest = {
+        "format": FORMAT_VERSION,
+        "scene": scene.to_dict(),
+        "scene_digest": scene.digest,
+        "seed": seed,
+        "n": n,
+        "shard_size": SHARD,
+        "chunk": SHARD,
+        "arrays": {
+            "readings": {"shape": [32], "dtype": "float32", "description": "strip readings (V), rows first"},
+            "pressure": {"shape": [16, 16], "dtype": "float32", "description": "intersection map (kPa)"},
+        },
+        "shards": shards,
+        "versions": _versions(),
+    }
+    atomic_write_json(out / MANIFEST, manifest)
+    return out / MANIFEST
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--n", type=int, required=True)
+    parser.add_argument("--seed", type=int, required=True)
+    parser.add_argument("--out", required=True)
+    args = parser.parse_args(argv)
+    print(write(args.n, args.seed, Path(args.out)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
