@@ -31,6 +31,11 @@ with DATA = data/products12k-train (RUN = products14, 14 % of frames) and data/p
 ``scripts/strips_unseen.py`` on the ood suite, rounds 4 and 5, and two spheres. A lead (never shipped from
 this test alone: round 5 is not blind for it) if two spheres >= 0.96, the ood margin >= +0.05 and round 5's
 margin >= 0 with fewer than 10 of 12 families below.
+
+A third run, declared after those two were measured (they cost the ood suite's diagonal edge): ``products33``'s
+data plus 15,000 frames of ``results/strips_experts/strips16_wide_edges.toml`` (the wide scene's line edges alone,
+its ranges and holdouts; seed 9606), 8 epochs, ``--threads 2``: RUN = products33e. A candidate to ship if two spheres
+>= 0.96 and the ood margin >= +0.05 hold and every unseen round (2-5) is at least ``strips16``'s.
 """
 
 from __future__ import annotations
