@@ -36,6 +36,12 @@ A third run, declared after those two were measured (they cost the ood suite's d
 data plus 15,000 frames of ``results/strips_experts/strips16_wide_edges.toml`` (the wide scene's line edges alone,
 its ranges and holdouts; seed 9606), 8 epochs, ``--threads 2``: RUN = products33e. A candidate to ship if two spheres
 >= 0.96 and the ood margin >= +0.05 hold and every unseen round (2-5) is at least ``strips16``'s.
+
+A fourth, declared after the third was measured (each fine-tune on the truth drifted from the default where it
+was good): ``products33``'s data with ``strips16`` itself as the teacher of the wide and two-sphere frames
+(``--teacher models/strips16.pt --teacher-data data/pf-wide-train data/pf-spheres-train``: its own maps are the
+targets there, the truth only on the product fields), 8 epochs, ``--threads 2``: RUN = products33d; the same
+criteria.
 """
 
 from __future__ import annotations
