@@ -191,7 +191,7 @@ def _per_frame_r(estimators: dict[str, Any], readings: np.ndarray, truth: np.nda
     return np.stack([pearson_per_frame(estimators[c].predict(readings), truth) for c in CHOICES], axis=1)
 
 
-def _read(folder: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_frames(folder: Path) -> tuple[np.ndarray, np.ndarray]:
     from synth.dataset import load_arrays
 
     ds = load_arrays(folder, ["readings", "pressure"])
@@ -214,7 +214,7 @@ def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any
     folders = sorted(root.glob("*-router"))
     xs, labels, gains = [], [], []
     for folder in folders:
-        readings, truth = _read(folder)
+        readings, truth = read_frames(folder)
         r = np.nan_to_num(_per_frame_r(estimators, readings, truth), nan=-1.0)
         best = r.argmax(axis=1)
         label = np.where(r[np.arange(len(r)), best] >= r[:, 0] + ROUTE_MARGIN, best, 0)

@@ -54,8 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from synth.dataset import FORMAT_VERSION, MANIFEST, _store_shard, _versions
-from synth.io import atomic_write_json
+from synth.dataset import write_shards
 from synth.scene import Scene, load_scene
 from synth.sensors.strips.sensor import StripModel
 from synth.sensors.strips.stimuli import PressureField
@@ -123,29 +122,12 @@ def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray
 def write(n: int, seed: int, out: Path) -> Path:
     """The dataset folder (shards seeded per index, manifest last)."""
     scene = product_scene()
-    out.mkdir(parents=True, exist_ok=True)
     shards = []
     for index, start in enumerate(range(0, n, SHARD)):
-        size = min(SHARD, n - start)
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
-        shards.append(_store_shard(out, index, size, draw(scene, size, rng)))
-    manifest = {
-        "format": FORMAT_VERSION,
-        "scene": scene.to_dict(),
-        "scene_digest": scene.digest,
-        "seed": seed,
-        "n": n,
-        "shard_size": SHARD,
-        "chunk": SHARD,
-        "arrays": {
-            "readings": {"shape": [32], "dtype": "float32", "description": "strip readings (V), rows first"},
-            "pressure": {"shape": [16, 16], "dtype": "float32", "description": "intersection map (kPa)"},
-        },
-        "shards": shards,
-        "versions": _versions(),
-    }
-    atomic_write_json(out / MANIFEST, manifest)
-    return out / MANIFEST
+        shards.append(draw(scene, min(SHARD, n - start), rng))
+    descriptions = {"readings": "strip readings (V), rows first", "pressure": "intersection map (kPa)"}
+    return write_shards(out, scene, seed, shards, descriptions)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import ROUTER_SEED, _read, features
+from strips_experts import ROUTER_SEED, features, read_frames
 
 LOSS_MARGIN = 0.05  # as scripts/strips_unseen.py: a frame the model answers this far below the rule
 TWO_SPHERE_FLAG_SHARE = 0.005
@@ -83,7 +83,7 @@ def train(root: Path, out: Path, log: Any = print) -> dict[str, Any]:
     default, rule = _methods()
     xs, ys, groups = [], [], []
     for folder in sorted(root.glob("*-router")):
-        readings, truth = _read(folder)
+        readings, truth = read_frames(folder)
         y = losing(default.predict(readings), rule.predict(readings), truth)
         group = 1 if folder.name == "scene-strips16-router" else 2 if folder.name == "scene-strips16_wide-router" else 0
         xs.append(features(readings))

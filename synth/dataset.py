@@ -37,7 +37,7 @@ from synth.io import atomic_save_npy, atomic_write_json, sha256_file
 from synth.scene import Scene, parse_scene
 from synth.sensors import sensor_module
 
-__all__ = ["FORMAT_VERSION", "Dataset", "generate", "load_arrays", "simulate_shard", "stream"]
+__all__ = ["FORMAT_VERSION", "Dataset", "generate", "load_arrays", "simulate_shard", "stream", "write_shards"]
 
 FORMAT_VERSION = 1
 #: samples simulated per call inside a shard; fixed so that the random stream never depends on it
@@ -239,6 +239,45 @@ def generate(
     manifest = dict(request)
     manifest["shards"] = [records[i] for i in range(len(sizes))]
     manifest["versions"] = _versions()
+    atomic_write_json(folder / MANIFEST, manifest)
+    return folder / MANIFEST
+
+
+def write_shards(
+    out: str | Path,
+    scene: Scene,
+    seed: int,
+    shards: Sequence[dict[str, np.ndarray]],
+    descriptions: dict[str, str],
+) -> Path:
+    """A dataset folder of arrays made elsewhere (e.g. stimuli no scene draws, pushed through the
+    scene's sensor model): each of ``shards`` written with its checksums, then the manifest (the
+    scene, the seed that made them, every array's per-sample shape, dtype and ``descriptions``
+    entry), last and atomically, as :func:`generate` writes one. Returns the manifest's path."""
+    if not shards:
+        raise DataError(f"{out}: no shards to write")
+    keys = list(shards[0])
+    if set(keys) != set(descriptions) or any(list(shard) != keys for shard in shards):
+        raise DataError(f"{out}: every shard must hold the described arrays ({', '.join(sorted(descriptions))})")
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    records = [_store_shard(folder, i, len(shard[keys[0]]), shard) for i, shard in enumerate(shards)]
+    first = shards[0]
+    manifest = {
+        "format": FORMAT_VERSION,
+        "scene": scene.to_dict(),
+        "scene_digest": scene.digest,
+        "seed": seed,
+        "n": sum(int(r["n"]) for r in records),
+        "shard_size": int(records[0]["n"]),
+        "chunk": int(records[0]["n"]),
+        "arrays": {
+            k: {"shape": list(first[k].shape[1:]), "dtype": str(first[k].dtype), "description": descriptions[k]}
+            for k in keys
+        },
+        "shards": records,
+        "versions": _versions(),
+    }
     atomic_write_json(folder / MANIFEST, manifest)
     return folder / MANIFEST
 
