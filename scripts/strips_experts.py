@@ -207,12 +207,62 @@ def features(readings: np.ndarray) -> np.ndarray:
     return np.concatenate([share * 16.0, np.log(np.maximum(total, 1e-4))], axis=1).astype(np.float32)
 
 
+def fit_mlp(
+    xt: Any,
+    target: Any,
+    fit: np.ndarray,
+    rng: np.random.Generator,
+    seed: int,
+    outputs: int,
+    loss_of: Any,
+    on_epoch: Any = None,
+) -> Any:
+    """A small MLP (inputs -> 96 -> 96 -> ``outputs``) fitted to ``target`` on the rows ``fit`` of the
+    normalised features ``xt``: 60 epochs of batches of 256 drawn with ``rng``, AdamW, one cycle to
+    2e-3; ``on_epoch(epoch, net, last_loss)`` after each epoch. The router's and the fallback flag's net."""
+    import torch
+
+    torch.manual_seed(seed)
+    net = torch.nn.Sequential(
+        torch.nn.Linear(xt.shape[1], 96), torch.nn.ReLU(), torch.nn.Linear(96, 96), torch.nn.ReLU(),
+        torch.nn.Linear(96, outputs),
+    )  # fmt: skip
+    opt = torch.optim.AdamW(net.parameters(), lr=2e-3, weight_decay=1e-4)
+    epochs = 60
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=2e-3, total_steps=epochs * (len(fit) // 256 + 1))
+    for epoch in range(epochs):
+        net.train()
+        perm = torch.from_numpy(rng.permutation(fit))
+        for i in range(0, len(perm), 256):
+            idx = perm[i : i + 256]
+            loss = loss_of(net(xt[idx]), target[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            sched.step()
+        if on_epoch is not None:
+            on_epoch(epoch, net, loss)
+    net.eval()
+    return net
+
+
+def export_mlp(net: Any, example: Any, path: Path, output: str) -> None:
+    """``net`` as ONNX (opset 18, any batch): input ``features``, output ``output``."""
+    import torch
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    torch.onnx.export(
+        net, (example,), str(path), input_names=["features"], output_names=[output],
+        dynamic_axes={"features": {0: "batch"}, output: {0: "batch"}}, opset_version=18, dynamo=False,
+    )  # fmt: skip
+
+
 def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any = print) -> dict[str, Any]:
     import torch
 
     estimators = _estimators(runs, long)
     folders = sorted(root.glob("*-router"))
-    xs, labels, gains = [], [], []
+    xs, labels = [], []
     for folder in folders:
         readings, truth = read_frames(folder)
         r = np.nan_to_num(_per_frame_r(estimators, readings, truth), nan=-1.0)
@@ -220,7 +270,6 @@ def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any
         label = np.where(r[np.arange(len(r)), best] >= r[:, 0] + ROUTE_MARGIN, best, 0)
         xs.append(features(readings))
         labels.append(label)
-        gains.append(r)
         log(f"{folder.name}: labels {np.bincount(label, minlength=len(CHOICES)).tolist()}")
     x = np.concatenate(xs)
     y = np.concatenate(labels)
@@ -229,37 +278,18 @@ def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any
     n_val = len(x) // 10
     val, train = order[:n_val], order[n_val:]
     mean, std = x[train].mean(axis=0), x[train].std(axis=0) + 1e-6
-    torch.manual_seed(ROUTER_SEED)
-    net = torch.nn.Sequential(
-        torch.nn.Linear(x.shape[1], 96), torch.nn.ReLU(), torch.nn.Linear(96, 96), torch.nn.ReLU(),
-        torch.nn.Linear(96, len(CHOICES)),
-    )  # fmt: skip
     xt = torch.from_numpy((x - mean) / std)
     yt = torch.from_numpy(y.astype(np.int64))
-    opt = torch.optim.AdamW(net.parameters(), lr=2e-3, weight_decay=1e-4)
-    epochs = 60
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=2e-3, total_steps=epochs * (len(train) // 256 + 1))
-    for epoch in range(epochs):
-        net.train()
-        perm = torch.from_numpy(rng.permutation(train))
-        for i in range(0, len(perm), 256):
-            idx = perm[i : i + 256]
-            loss = torch.nn.functional.cross_entropy(net(xt[idx]), yt[idx])
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
+
+    def report(epoch: int, net: Any, loss: Any) -> None:
         if epoch % 10 == 9:
             net.eval()
             with torch.no_grad():
                 acc = float((net(xt[val]).argmax(1) == yt[val]).float().mean())
             log(f"router epoch {epoch + 1}: loss {float(loss):.3f}, val accuracy {acc:.3f}")
-    out.mkdir(parents=True, exist_ok=True)
-    net.eval()
-    torch.onnx.export(
-        net, (xt[:1],), str(out / "router.onnx"), input_names=["features"], output_names=["logits"],
-        dynamic_axes={"features": {0: "batch"}, "logits": {0: "batch"}}, opset_version=18, dynamo=False,
-    )  # fmt: skip
+
+    net = fit_mlp(xt, yt, train, rng, ROUTER_SEED, len(CHOICES), torch.nn.functional.cross_entropy, report)
+    export_mlp(net, xt[:1], out / "router.onnx", "logits")
     card = {"choices": list(CHOICES), "mean": mean.tolist(), "std": std.tolist(), "labels": np.bincount(y).tolist()}
     (out / "router.json").write_text(json.dumps(card, indent=1))
     return card

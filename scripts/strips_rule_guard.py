@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import ROUTER_SEED, features, read_frames
+from strips_experts import ROUTER_SEED, export_mlp, features, fit_mlp, read_frames
 
 LOSS_MARGIN = 0.05  # as scripts/strips_unseen.py: a frame the model answers this far below the rule
 TWO_SPHERE_FLAG_SHARE = 0.005
@@ -96,26 +96,16 @@ def train(root: Path, out: Path, log: Any = print) -> dict[str, Any]:
     n_hold = len(x) // 5
     hold, fit = order[:n_hold], order[n_hold:]
     mean, std = x[fit].mean(axis=0), x[fit].std(axis=0) + 1e-6
-    torch.manual_seed(ROUTER_SEED + 7)
-    net = torch.nn.Sequential(
-        torch.nn.Linear(x.shape[1], 96), torch.nn.ReLU(), torch.nn.Linear(96, 96), torch.nn.ReLU(),
-        torch.nn.Linear(96, 1),
-    )  # fmt: skip
     xt, yt = torch.from_numpy((x - mean) / std), torch.from_numpy(y)
-    opt = torch.optim.AdamW(net.parameters(), lr=2e-3, weight_decay=1e-4)
-    epochs = 60
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=2e-3, total_steps=epochs * (len(fit) // 256 + 1))
-    for epoch in range(epochs):
-        perm = torch.from_numpy(rng.permutation(fit))
-        for i in range(0, len(perm), 256):
-            idx = perm[i : i + 256]
-            loss = torch.nn.functional.binary_cross_entropy_with_logits(net(xt[idx])[:, 0], yt[idx])
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
+
+    def report(epoch: int, _net: Any, loss: Any) -> None:
         if epoch % 20 == 19:
             log(f"epoch {epoch + 1}: loss {loss.item():.3f}")
+
+    def loss_of(out: Any, target: Any) -> Any:
+        return torch.nn.functional.binary_cross_entropy_with_logits(out[:, 0], target)
+
+    net = fit_mlp(xt, yt, fit, rng, ROUTER_SEED + 7, 1, loss_of, report)
     with torch.no_grad():
         p_hold = torch.sigmoid(net(xt[hold])[:, 0]).numpy()
     threshold = choose_threshold(p_hold, g[hold])
@@ -135,11 +125,7 @@ def train(root: Path, out: Path, log: Any = print) -> dict[str, Any]:
         },
     }
     log(json.dumps(card["held_out"]))
-    out.mkdir(parents=True, exist_ok=True)
-    torch.onnx.export(
-        net, (xt[:1],), str(out / "guard.onnx"), input_names=["features"], output_names=["logit"],
-        dynamic_axes={"features": {0: "batch"}, "logit": {0: "batch"}}, opset_version=18, dynamo=False,
-    )  # fmt: skip
+    export_mlp(net, xt[:1], out / "guard.onnx", "logit")
     (out / "guard.json").write_text(json.dumps(card, indent=1))
     return card
 
