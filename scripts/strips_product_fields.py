@@ -50,6 +50,7 @@ import argparse
 import dataclasses
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -112,20 +113,34 @@ def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray
     force = np.exp(rng.uniform(math.log(FORCE_N[0]), math.log(FORCE_N[1]), n))
     # kPa = N / mm^2 * 1000: the field's integral over the cells (h^2 mm^2 each) is the force
     field *= (force * 1000.0 / (field.sum(axis=(1, 2)) * h_mm * h_mm))[:, None, None]
+    return push(scene, field, rng)
+
+
+def push(scene: Scene, field: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Fields (B, fine rows, fine columns) in kPa through the scene's sensor model, with per-frame
+    strip gains (drawn first), noise and ADC: readings (B, 32) V and the intersection map (B, 16, 16) kPa."""
+    config = scene.sensor
     model = StripModel(config)
-    gains = np.clip(1.0 + config.piezo.gain_spread * rng.standard_normal((n, 2 * 16)), 0.5, 1.5)
+    gains = np.clip(1.0 + config.piezo.gain_spread * rng.standard_normal((len(field), 2 * 16)), 0.5, 1.5)
     stimulus = PressureField.from_field(field.astype(np.float32), config, gains.astype(np.float32))
     readings = model.forward(stimulus, rng)
     return {"readings": readings.astype(np.float32), "pressure": model.pressure_map(stimulus).astype(np.float32)}
 
 
-def write(n: int, seed: int, out: Path) -> Path:
-    """The dataset folder (shards seeded per index, manifest last)."""
-    scene = product_scene()
+def write(
+    n: int,
+    seed: int,
+    out: Path,
+    scene: Scene | None = None,
+    draw_frames: Callable[[Scene, int, np.random.Generator], dict[str, np.ndarray]] = draw,
+) -> Path:
+    """The dataset folder (shards seeded per index, manifest last): ``draw_frames`` of ``scene``
+    (by default this script's product fields under :func:`product_scene`)."""
+    scene = product_scene() if scene is None else scene
     shards = []
     for index, start in enumerate(range(0, n, SHARD)):
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(index,)))
-        shards.append(draw(scene, min(SHARD, n - start), rng))
+        shards.append(draw_frames(scene, min(SHARD, n - start), rng))
     descriptions = {"readings": "strip readings (V), rows first", "pressure": "intersection map (kPa)"}
     return write_shards(out, scene, seed, shards, descriptions)
 
