@@ -53,6 +53,15 @@ issue's floor is round 6 at +0.05 with no family below the rule.
 
 The same criteria; one meeting the two-sphere and ood criteria with rounds 5 and 6 at least ``shapesd``'s
 would need a seventh round, written after it, before it could ship.
+
+**Measured**: ``soup50`` two spheres 0.9604, ood +0.047, round 5 -0.020, round 6 -0.021 (half way along the
+line from ``strips16`` to ``shapes``); ``shapesm`` 0.9603, +0.046, -0.016, -0.010 (as ``shapesd``: the mixed
+scene taught by ``strips16`` gave back none of the ood margin, which the generic frames take from the
+diagonal edge, -0.026, and the washers, -0.008). **One more, declared before it is made**: is the trade a
+capacity limit? ``shapes384``: ``shapesm``'s frames and teachers on the grown ``context384_consistent``
+network (``python scripts/strips_grow.py models/strips16.pt --size context384_consistent --out
+runs/init_context384.pt``; ``train --size context384_consistent --init runs/init_context384.pt``), 8 epochs,
+two threads; the same criteria plus batch-1 latency <= 150 us.
 """
 
 from __future__ import annotations
