@@ -60,7 +60,7 @@ scene taught by ``strips16`` gave back none of the ood margin, which the generic
 diagonal edge, -0.026, and the washers, -0.008). **One more, declared before it is made**: is the trade a
 capacity limit? ``shapes384``: ``shapesm``'s frames and teachers on the grown ``context384_consistent``
 network (``python scripts/strips_grow.py models/strips16.pt --size context384_consistent --out
-runs/init_context384.pt``; ``train --size context384_consistent --init runs/init_context384.pt``), 8 epochs,
+runs/init_context384.pt``; ``train --init runs/init_context384.pt``, which carries the size), 8 epochs,
 two threads; the same criteria plus batch-1 latency <= 150 us.
 """
 
