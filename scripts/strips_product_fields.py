@@ -111,9 +111,14 @@ def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray
     cols = profiles(n, g.n_cols * s, h_mm, rng)
     field = rows[:, :, None] * cols[:, None, :]
     force = np.exp(rng.uniform(math.log(FORCE_N[0]), math.log(FORCE_N[1]), n))
-    # kPa = N / mm^2 * 1000: the field's integral over the cells (h^2 mm^2 each) is the force
-    field *= (force * 1000.0 / (field.sum(axis=(1, 2)) * h_mm * h_mm))[:, None, None]
-    return push(scene, field, rng)
+    return push(scene, to_force(field, force, h_mm), rng)
+
+
+def to_force(field: np.ndarray, force_n: np.ndarray, h_mm: float) -> np.ndarray:
+    """Fields (B, fine rows, fine columns) scaled in place to kPa whose integral over the cells
+    (``h_mm``^2 mm^2 each) is each frame's force (N): kPa = N / mm^2 * 1000."""
+    field *= (force_n * 1000.0 / (field.sum(axis=(1, 2)) * h_mm * h_mm))[:, None, None]
+    return field
 
 
 def push(scene: Scene, field: np.ndarray, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -145,14 +150,19 @@ def write(
     return write_shards(out, scene, seed, shards, descriptions)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def run_cli(argv: list[str] | None, description: str | None, write_set: Callable[[int, int, Path], Path]) -> int:
+    """The command line of a script that writes a generated dataset: ``--n``, ``--seed``, ``--out``."""
+    parser = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n", type=int, required=True)
     parser.add_argument("--seed", type=int, required=True)
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
-    print(write(args.n, args.seed, Path(args.out)))
+    print(write_set(args.n, args.seed, Path(args.out)))
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_cli(argv, __doc__, write)
 
 
 if __name__ == "__main__":

@@ -66,7 +66,6 @@ two threads; the same criteria plus batch-1 latency <= 150 us.
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import sys
@@ -152,9 +151,7 @@ def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray
     h_mm = g.pitch_mm / g.samples_per_pitch
     field = np.stack([shape(size, h_mm, rng) for _ in range(n)])
     force = np.exp(rng.uniform(math.log(FORCE_N[0]), math.log(FORCE_N[1]), n))
-    # kPa = N / mm^2 * 1000: the field's integral over the cells (h^2 mm^2 each) is the force
-    field *= (force * 1000.0 / (field.sum(axis=(1, 2)) * h_mm * h_mm))[:, None, None]
-    return products.push(scene, field, rng)
+    return products.push(scene, products.to_force(field, force, h_mm), rng)
 
 
 def write(n: int, seed: int, out: Path) -> Path:
@@ -163,13 +160,7 @@ def write(n: int, seed: int, out: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--n", type=int, required=True)
-    parser.add_argument("--seed", type=int, required=True)
-    parser.add_argument("--out", required=True)
-    args = parser.parse_args(argv)
-    print(write(args.n, args.seed, Path(args.out)))
-    return 0
+    return products.run_cli(argv, __doc__, write)
 
 
 if __name__ == "__main__":

@@ -137,8 +137,12 @@ def test_no_reference_draws_a_frame_of_any_family(suite: Suite, reference: str) 
 def test_every_family_but_the_single_contacts_is_an_object(suite: Suite) -> None:
     """The families of one contact are new by their shape alone; every other family places its
     contacts as the parts of one object (the arrangement the predicates check)."""
-    single = {f.name for f in suite.families if f.scene.sensor.stimuli.count == (1, 1)}
-    assert single == {"jar_lid_rim", "tape_roll_flat", "book_corner", "tumbler_base"}
+    assert_objects_but_the_single_contacts(suite, {"jar_lid_rim", "tape_roll_flat", "book_corner", "tumbler_base"})
+
+
+def assert_objects_but_the_single_contacts(suite: Suite, single: set[str]) -> None:
+    """``single`` are exactly the suite's families of one contact, and every other family is an object."""
+    assert {f.name for f in suite.families if f.scene.sensor.stimuli.count == (1, 1)} == single
     for fam in suite.families:
         stimuli: StripStimuli = fam.scene.sensor.stimuli
         assert (stimuli.object is None) == (fam.name in single), fam.name

@@ -17,13 +17,12 @@ from functools import cache
 import pytest
 
 from synth.scene import Scene, load_scene
-from synth.sensors.strips.config import StripStimuli
 from synth.suite import Suite, load_suite
 from tests.synth.test_objects_scenes import draw
 from tests.synth.test_unseen3_suite import EARLIER_SUITES, assert_no_frame_drawn, assert_outside, novelty
 from tests.synth.test_unseen3_suite import assert_own_frames_accepted as assert_own_frames_accepted_by
 from tests.synth.test_unseen4_suite import looks_like
-from tests.synth.test_unseen5_suite import STRIP_SCENES
+from tests.synth.test_unseen5_suite import STRIP_SCENES, assert_objects_but_the_single_contacts
 from tests.synth.test_unseen5_suite import references as round5_references
 from tests.synth.test_unseen_suite import assert_frames_within_range
 
@@ -114,8 +113,4 @@ def test_no_reference_draws_a_frame_of_any_family(suite: Suite, reference: str) 
 def test_every_family_but_the_single_contacts_is_an_object(suite: Suite) -> None:
     """The families of one contact are new by their shape alone; every other family places its
     contacts as the parts of one object (the arrangement the predicates check)."""
-    single = {f.name for f in suite.families if f.scene.sensor.stimuli.count == (1, 1)}
-    assert single == {"bottle_on_its_side", "phone_lying_flat"}
-    for fam in suite.families:
-        stimuli: StripStimuli = fam.scene.sensor.stimuli
-        assert (stimuli.object is None) == (fam.name in single), fam.name
+    assert_objects_but_the_single_contacts(suite, {"bottle_on_its_side", "phone_lying_flat"})
