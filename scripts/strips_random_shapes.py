@@ -32,7 +32,9 @@ weights, 8 epochs, lr 3e-4, one thread each, best epoch on ``data/pf-wide-val`` 
   (``--teacher models/strips16.pt --teacher-data data/pf-wide-train data/pf-spheres-train``), the truth on
   the product fields and the random shapes (``products33d``'s way of keeping the two spheres).
 
-Each is exported (``tactile-learn export runs/RUN --out runs/RUN/model.onnx``) and judged beside
+Each is exported (``tactile-learn export runs/RUN --out runs/RUN/model.onnx``; that name replaces the run's
+``model.pt`` with the exported weights and needs ``--overwrite``: the later runs were exported to
+``runs/RUN/candidate.onnx``, which keeps it) and judged beside
 ``strips16`` by ``scripts/strips_unseen.py`` (seeds 5151 / 6262, 600 frames a family) on the ood suite,
 round 5 (not blind: written before, and product fields were designed after it) and **round 6**, a new
 round of unseen objects written after this declaration and after both runs are fixed, and on the
@@ -46,7 +48,9 @@ issue's floor is round 6 at +0.05 with no family below the rule.
 (round 6 is not blind for them: it was seen):
 
 - ``soup50``: the mean of ``strips16``'s and ``shapes``' weights (``python scripts/average_weights.py
-  models/strips16.pt runs/shapes --weight 0.5 --out runs/soup50``), no training;
+  models/strips16.pt runs/shapes --weight 0.5 --out runs/soup50``), no training (``shapes``' run file had
+  been replaced by its export, above: it was rebuilt as ``runs/shapes/run/model.pt`` from the same weights,
+  its card's scene and its ``metrics.json``, and averaged from there);
 - ``shapesm``: ``shapesd``'s frames plus 40,000 ``strips16_mixed`` frames (the shape library the ood suite
   holds parameters out of; ``tactile-learn generate --scene strips16_mixed --n 40000 --seed 9702 --out
   data/shapes-mixed-train --workers 2``) taught by ``strips16`` too, 8 epochs, one thread.
