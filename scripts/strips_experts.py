@@ -247,14 +247,11 @@ def fit_mlp(
 
 
 def export_mlp(net: Any, example: Any, path: Path, output: str) -> None:
-    """``net`` as ONNX (opset 18, any batch): input ``features``, output ``output``."""
-    import torch
+    """``net`` as ONNX by the package's exporter (any batch): input ``features``, output ``output``."""
+    from tactile_learn.export import to_onnx
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.onnx.export(
-        net, (example,), str(path), input_names=["features"], output_names=[output],
-        dynamic_axes={"features": {0: "batch"}, output: {0: "batch"}}, opset_version=18, dynamo=False,
-    )  # fmt: skip
+    to_onnx(net, example, path, "features", output, {"script": "scripts/strips_experts.py"})
 
 
 def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any = print) -> dict[str, Any]:
