@@ -292,22 +292,33 @@ def train_router(root: Path, runs: Path, out: Path, long: bool = False, log: Any
     return card
 
 
+def load_mlp(folder: Path, stem: str) -> tuple[dict[str, Any], Any]:
+    """An exported MLP (``folder/stem.onnx``, one thread) and its card (``folder/stem.json``: the
+    features' ``mean`` and ``std``): the card and ``run(readings) -> outputs`` on :func:`features`."""
+    import onnxruntime as ort
+
+    card = json.loads((folder / f"{stem}.json").read_text())
+    mean, std = np.asarray(card["mean"], np.float32), np.asarray(card["std"], np.float32)
+    options = ort.SessionOptions()
+    options.intra_op_num_threads = 1
+    session = ort.InferenceSession(str(folder / f"{stem}.onnx"), options, providers=["CPUExecutionProvider"])
+
+    def run(readings: np.ndarray) -> np.ndarray:
+        return np.asarray(session.run(None, {"features": (features(readings) - mean) / std})[0])
+
+    return card, run
+
+
 class RoutedStrips:
     """The mixture at run time: the router's choice per frame, then that expert on its frames."""
 
     def __init__(self, runs: Path, router: Path, probability: float = ROUTE_PROBABILITY, long: bool = False) -> None:
-        import onnxruntime as ort
-
         self.estimators = _estimators(runs, long)
-        card = json.loads((router / "router.json").read_text())
-        self.mean, self.std = np.asarray(card["mean"], np.float32), np.asarray(card["std"], np.float32)
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = 1
-        self.router = ort.InferenceSession(str(router / "router.onnx"), options, providers=["CPUExecutionProvider"])
+        _, self.router = load_mlp(router, "router")
         self.probability = probability
 
     def route(self, readings: np.ndarray) -> np.ndarray:
-        logits = self.router.run(None, {"features": (features(readings) - self.mean) / self.std})[0]
+        logits = self.router(readings)
         p = np.exp(logits - logits.max(axis=1, keepdims=True))
         p /= p.sum(axis=1, keepdims=True)
         choice = p.argmax(axis=1)

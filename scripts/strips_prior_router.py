@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import export_mlp, features, fit_mlp, read_frames
+from strips_experts import export_mlp, features, fit_mlp, load_mlp, read_frames
 
 LIBRARY = {"data/pf-wide-train": 20000, "data/pf-spheres-train": 10000, "data/shapes-mixed-train": 10000}
 GENERIC = {"data/shapes-train": 20000, "data/products-train": 20000}
@@ -81,20 +81,14 @@ class PriorRouted:
     """The two models behind the router: each frame answered by the model of the prior it calls for."""
 
     def __init__(self, router: Path) -> None:
-        import onnxruntime as ort
-
         from tactile_learn.runtime import OnnxEstimator
 
-        card = json.loads((router / "router.json").read_text())
-        self.mean, self.std = np.asarray(card["mean"], np.float32), np.asarray(card["std"], np.float32)
+        card, self.router = load_mlp(router, "router")
         self.threshold = float(card["threshold"])
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = 1
-        self.router = ort.InferenceSession(str(router / "router.onnx"), options, providers=["CPUExecutionProvider"])
         self.models = {k: OnnxEstimator(path, threads=1).prepare() for k, path in card["models"].items()}
 
     def generic(self, readings: np.ndarray) -> np.ndarray:
-        logit = self.router.run(None, {"features": (features(readings) - self.mean) / self.std})[0][:, 0]
+        logit = self.router(readings)[:, 0]
         return np.asarray(logit >= np.log(self.threshold / (1.0 - self.threshold)))
 
     def predict(self, readings: np.ndarray) -> np.ndarray:

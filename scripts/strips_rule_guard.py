@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import ROUTER_SEED, export_mlp, features, fit_mlp, read_frames
+from strips_experts import ROUTER_SEED, export_mlp, features, fit_mlp, load_mlp, read_frames
 
 LOSS_MARGIN = 0.05  # as scripts/strips_unseen.py: a frame the model answers this far below the rule
 TWO_SPHERE_FLAG_SHARE = 0.005
@@ -134,18 +134,12 @@ class RuleGuard:
     """``strips16`` with the rule's map on the frames the flag calls losing."""
 
     def __init__(self, guard: Path) -> None:
-        import onnxruntime as ort
-
-        card = json.loads((guard / "guard.json").read_text())
-        self.mean, self.std = np.asarray(card["mean"], np.float32), np.asarray(card["std"], np.float32)
+        card, self.session = load_mlp(guard, "guard")
         self.threshold = float(card["threshold"])
-        options = ort.SessionOptions()
-        options.intra_op_num_threads = 1
-        self.session = ort.InferenceSession(str(guard / "guard.onnx"), options, providers=["CPUExecutionProvider"])
         self.default, self.rule = _methods()
 
     def flags(self, readings: np.ndarray) -> np.ndarray:
-        logit = self.session.run(None, {"features": (features(readings) - self.mean) / self.std})[0][:, 0]
+        logit = self.session(readings)[:, 0]
         return 1.0 / (1.0 + np.exp(-logit.astype(np.float64))) >= self.threshold
 
     def predict(self, readings: np.ndarray) -> np.ndarray:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -78,22 +77,20 @@ class _Constant:
         return np.full((len(readings), 16, 16), self.value, np.float32)
 
 
-class _Router:
-    """Logits that put the frame's first reading's choice first, at a probability set by the second."""
-
-    def run(self, _outputs: Any, feeds: dict[str, np.ndarray]) -> list[np.ndarray]:
-        x = feeds["features"]
-        choice = x[:, 0].astype(int)
-        logits = np.zeros((len(x), len(strips_experts.CHOICES)), np.float32)
-        logits[np.arange(len(x)), choice] = x[:, 1]
-        return [logits]
+def _router(readings: np.ndarray) -> np.ndarray:
+    """Logits (as ``strips_experts.load_mlp``'s ``run``) that put the frame's first feature's choice
+    first, at a probability set by the second."""
+    x = strips_experts.features(readings)
+    choice = x[:, 0].astype(int)
+    logits = np.zeros((len(x), len(strips_experts.CHOICES)), np.float32)
+    logits[np.arange(len(x)), choice] = x[:, 1]
+    return logits
 
 
 def test_each_frame_goes_to_the_routers_choice_only_when_it_is_sure(monkeypatch: pytest.MonkeyPatch) -> None:
     routed = strips_experts.RoutedStrips.__new__(strips_experts.RoutedStrips)
     routed.estimators = {name: _Constant(float(k)) for k, name in enumerate(strips_experts.CHOICES)}
-    routed.router, routed.probability = _Router(), strips_experts.ROUTE_PROBABILITY
-    routed.mean, routed.std = np.zeros(33, np.float32), np.ones(33, np.float32)
+    routed.router, routed.probability = _router, strips_experts.ROUTE_PROBABILITY
     n = len(strips_experts.CHOICES)
     choices = np.array([0, 1, 2, 3, 2, 1])
     sure = np.array([5.0, 5.0, 5.0, 5.0, 0.0, 0.5])  # 0: uniform (1/4), 0.5: ~0.35 < 0.5
