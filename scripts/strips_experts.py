@@ -309,6 +309,19 @@ def load_mlp(folder: Path, stem: str) -> tuple[dict[str, Any], Any]:
     return card, run
 
 
+def per_family(suite_name: str, n: int, seeds: list[int], one: Any) -> dict[str, list[Any]]:
+    """``one(data)`` of every family of the suite at every seed (``n`` fresh frames each): family ->
+    the results in the order of ``seeds``."""
+    from tactile_learn.suites import suite_eval_data
+
+    suite = load_suite(suite_name)
+    rows: dict[str, list[Any]] = {f.name: [] for f in suite.families}
+    for seed in seeds:
+        for fam, data in suite_eval_data(suite, n, seed).items():
+            rows[fam].append(one(data))
+    return rows
+
+
 class RoutedStrips:
     """The mixture at run time: the router's choice per frame, then that expert on its frames."""
 

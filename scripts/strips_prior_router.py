@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import export_mlp, features, fit_mlp, load_mlp, read_frames
+from strips_experts import export_mlp, features, fit_mlp, load_mlp, per_family, read_frames
 
 LIBRARY = {"data/pf-wide-train": 20000, "data/pf-spheres-train": 10000, "data/shapes-mixed-train": 10000}
 GENERIC = {"data/shapes-train": 20000, "data/products-train": 20000}
@@ -102,9 +102,7 @@ class PriorRouted:
 
 def evaluate(router: Path, n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
     from synth.scene import load_scene
-    from synth.suite import load_suite
     from tactile_learn.methods import resolve_method
-    from tactile_learn.suites import suite_eval_data
     from tactile_learn.tasks import get_task
 
     task = get_task("strips")
@@ -125,20 +123,18 @@ def evaluate(router: Path, n: int, seeds: list[int], log: Any = print) -> dict[s
         "suites": {},
     }
     log("two spheres", {k: round(v, 4) for k, v in result["two_spheres"].items()}, result["two_spheres_generic_share"])
+
+    def one(data: Any) -> dict[str, float]:
+        row = {m: task.metrics(est.predict(data.inputs), data)["pearson_r_mean"] for m, est in methods.items()}
+        return row | {"generic_share": float(routed.generic(data.inputs).mean())}
+
     for suite_name in SUITES:
-        suite = load_suite(suite_name)
-        rows: dict[str, dict[str, list[float]]] = {f.name: {m: [] for m in methods} for f in suite.families}
-        shares: dict[str, list[float]] = {f.name: [] for f in suite.families}
-        for seed in seeds:
-            for fam, data in suite_eval_data(suite, n, seed).items():
-                for m, est in methods.items():
-                    rows[fam][m].append(task.metrics(est.predict(data.inputs), data)["pearson_r_mean"])
-                shares[fam].append(float(routed.generic(data.inputs).mean()))
         families = {}
-        for fam, r in rows.items():
+        for fam, per_seed in per_family(suite_name, n, seeds, one).items():
+            r = {k: [row[k] for row in per_seed] for k in per_seed[0]}
             best = [max(a, b) for a, b in zip(r["intersection"], r["projection"], strict=True)]
             margins = {m: [v - b for v, b in zip(r[m], best, strict=True)] for m in ("strips16", "shapes", "routed")}
-            families[fam] = {"margin_per_seed": margins, "generic_share": float(np.mean(shares[fam]))}
+            families[fam] = {"margin_per_seed": margins, "generic_share": float(np.mean(r["generic_share"]))}
         summary = {
             m: {
                 "mean_margin": float(np.mean([np.mean(f["margin_per_seed"][m]) for f in families.values()])),

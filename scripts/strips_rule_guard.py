@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from strips_experts import ROUTER_SEED, export_mlp, features, fit_mlp, load_mlp, read_frames
+from strips_experts import ROUTER_SEED, export_mlp, features, fit_mlp, load_mlp, per_family, read_frames
 
 LOSS_MARGIN = 0.05  # as scripts/strips_unseen.py: a frame the model answers this far below the rule
 TWO_SPHERE_FLAG_SHARE = 0.005
@@ -152,9 +152,7 @@ class RuleGuard:
 
 def evaluate(guard_dir: Path, n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
     from synth.scene import load_scene
-    from synth.suite import load_suite
     from tactile_learn.methods import resolve_method
-    from tactile_learn.suites import suite_eval_data
     from tactile_learn.tasks import get_task
 
     task = get_task("strips")
@@ -183,11 +181,7 @@ def evaluate(guard_dir: Path, n: int, seeds: list[int], log: Any = print) -> dic
         result["sets"][name] = one(task.load_eval_data(folder))
         log(name, {k: round(v, 4) for k, v in result["sets"][name].items()})
     for suite_name in SUITES:
-        suite = load_suite(suite_name)
-        rows: dict[str, list[dict[str, float]]] = {f.name: [] for f in suite.families}
-        for seed in seeds:
-            for fam, data in suite_eval_data(suite, n, seed).items():
-                rows[fam].append(one(data))
+        rows = per_family(suite_name, n, seeds, one)
         table = {}
         for fam, per_seed in rows.items():
             mean = {k: float(np.nanmean([r[k] for r in per_seed])) for k in per_seed[0]}
