@@ -100,7 +100,14 @@ class PriorRouted:
         return out
 
 
-def evaluate(router: Path, n: int, seeds: list[int], log: Any = print) -> dict[str, Any]:
+def evaluate(
+    router: Path,
+    n: int,
+    seeds: list[int],
+    suites: list[str] | tuple[str, ...] = SUITES,
+    spheres_too: bool = True,
+    log: Any = print,
+) -> dict[str, Any]:
     from synth.scene import load_scene
     from tactile_learn.methods import resolve_method
     from tactile_learn.tasks import get_task
@@ -115,20 +122,18 @@ def evaluate(router: Path, n: int, seeds: list[int], log: Any = print) -> dict[s
         "shapes": routed.models["generic"],
         "routed": routed,
     }
-    spheres = task.load_eval_data("data/strips16-test")
-    two_spheres = {m: task.metrics(e.predict(spheres.inputs), spheres)["pearson_r_mean"] for m, e in methods.items()}
-    result: dict[str, Any] = {
-        "two_spheres": two_spheres,
-        "two_spheres_generic_share": float(routed.generic(spheres.inputs).mean()),
-        "suites": {},
-    }
-    log("two spheres", {k: round(v, 4) for k, v in result["two_spheres"].items()}, result["two_spheres_generic_share"])
+    result: dict[str, Any] = {"suites": {}}
+    if spheres_too:
+        spheres = task.load_eval_data("data/strips16-test")
+        r = {m: task.metrics(e.predict(spheres.inputs), spheres)["pearson_r_mean"] for m, e in methods.items()}
+        result |= {"two_spheres": r, "two_spheres_generic_share": float(routed.generic(spheres.inputs).mean())}
+        log("two spheres", {k: round(v, 4) for k, v in r.items()}, result["two_spheres_generic_share"])
 
     def one(data: Any) -> dict[str, float]:
         row = {m: task.metrics(est.predict(data.inputs), data)["pearson_r_mean"] for m, est in methods.items()}
         return row | {"generic_share": float(routed.generic(data.inputs).mean())}
 
-    for suite_name in SUITES:
+    for suite_name in suites:
         families = {}
         for fam, per_seed in per_family(suite_name, n, seeds, one).items():
             r = {k: [row[k] for row in per_seed] for k in per_seed[0]}
@@ -156,12 +161,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--router", default="runs/prior-router")
     p.add_argument("--seeds", type=int, nargs="+", default=[5151, 6262])
     p.add_argument("--n", type=int, default=600)
+    p.add_argument("--suites", nargs="+", default=list(SUITES), help="suites to judge on (default: ood, rounds 2-6)")
+    p.add_argument("--no-spheres", action="store_true", help="skip the two-sphere test set")
     p.add_argument("--json")
     args = parser.parse_args(argv)
     if args.command == "train":
         train(Path(args.out))
     else:
-        result = evaluate(Path(args.router), args.n, args.seeds)
+        result = evaluate(Path(args.router), args.n, args.seeds, args.suites, not args.no_spheres)
         if args.json:
             Path(args.json).write_text(json.dumps(result, indent=1))
     return 0
