@@ -11,6 +11,12 @@ same checks as the classical estimators (shape, dtype, NaN/inf, negative or satu
 the session, checked with one reduction (:mod:`tactile_learn.onnx_one_frame`): the batch-1 cost is
 the graph's, plus ~2 us and the task's finishing (FSR: its one-press check).
 
+A card may **route** frames (:mod:`tactile_learn.prior_route`): its ``route`` block names a second
+model of the same scene and outputs (``generic_model``, with its own card) and a router file
+(``router``, checked by ``router_sha256``); each frame the router calls generic is answered by that
+model, the others by the card's own graph, in every path (``predict``, ``predict_all``, the one-frame
+and stream paths). A missing, corrupt or mismatched member fails :meth:`OnnxEstimator.prepare`.
+
     from tactile_learn.runtime import OnnxEstimator
     model = OnnxEstimator("models/strips16.onnx", threads=1).prepare()
     maps = model.predict(readings)          # (B, 32) V -> (B, 16, 16) kPa
@@ -33,9 +39,10 @@ from tactile_learn.estimators.base import Estimator
 
 if TYPE_CHECKING:
     from tactile_learn.onnx_one_frame import OneFrameRun
+    from tactile_learn.prior_route import PriorRoute
     from tactile_learn.tasks.base import Task
 
-__all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "card_path", "read_card"]
+__all__ = ["CARD_FORMAT", "METADATA_KEY", "OnnxEstimator", "RoutedFrameRun", "card_path", "read_card"]
 
 CARD_FORMAT = 1
 #: key of the JSON blob that export writes into the ONNX graph's metadata
@@ -118,10 +125,58 @@ class OnnxEstimator(Estimator):
                 [self.card_["outputs"][0]["name"]],
                 self.card_["inputs"][0]["name"],
             )
+            # a routed card: the router and the generic member (None: every frame to this graph)
+            self.route_ = self._route()
             # the batch-1 path of predict: buffers bound to the session, the range checked with
             # one reduction (tactile_learn.onnx_one_frame); None where it does not apply
-            self.one_frame_ = self._one_frame_run()
+            self.one_frame_ = self._routed_run(self._one_frame_run(), lambda generic: generic.one_frame_)
         return self
+
+    def _route(self) -> tuple[PriorRoute, OnnxEstimator] | None:
+        """The card's ``route`` block loaded and checked (module docstring), or ``None``."""
+        from tactile_learn.prior_route import PriorRoute
+
+        spec = self.card_.get("route")
+        if spec is None:
+            return None
+        where = card_path(self.path)
+        fields = ("generic_model", "router", "router_sha256", "offset", "share_scale", "threshold")
+        if not isinstance(spec, dict) or [k for k in fields if k not in spec]:
+            raise ModelError(f"{where}: the card's route block needs {', '.join(fields)}")
+        folder = Path(self.path).parent
+        # the member checks readings against this model's scene (it must take its input shape and
+        # outputs); its own card's scene is the one it was trained on, which may differ
+        member = folder / str(spec["generic_model"])
+        if not member.is_file():
+            raise ModelError(f"{where}: the routed member {member} is not found")
+        member_card = read_card(member)
+        if "route" in member_card:  # (one level only: no chains, no loops)
+            raise ModelError(f"{where}: the routed member {spec['generic_model']} routes frames itself")
+        generic = OnnxEstimator(
+            member, self.threads, self.verify, self.scene_, self.backend, card=member_card, fuse=self.fuse
+        ).prepare()
+        mine, theirs = self.card_, generic.card_
+        for key in ("task", "inputs", "outputs"):
+            if mine[key] != theirs[key]:
+                raise ModelError(f"{where}: the routed member {spec['generic_model']} does not match this card's {key}")
+        try:
+            numbers = [float(spec[k]) for k in ("offset", "share_scale", "threshold")]
+        except (TypeError, ValueError):
+            raise ModelError(f"{where}: the route's offset, share_scale and threshold must be numbers") from None
+        inputs = int(np.prod(mine["inputs"][0]["shape"][1:]))
+        route = PriorRoute.load(folder / str(spec["router"]), str(spec["router_sha256"]), inputs, *numbers)
+        return route, generic
+
+    def _routed_run(self, own: Any, of_generic: Callable[[OnnxEstimator], Any]) -> Any:
+        """``own`` (a one-frame run of this graph) routed with the generic member's (``of_generic``
+        of it) where the card routes; ``own`` where it does not; ``None`` where either has none."""
+        if self.route_ is None or own is None:
+            return own
+        route, generic = self.route_
+        theirs = of_generic(generic)
+        if theirs is None:
+            return None
+        return RoutedFrameRun(route, own, theirs, (1, *self.input_shape(self.scene_)))
 
     @property
     def is_classifier(self) -> bool:  # type: ignore[override]
@@ -297,7 +352,23 @@ class OnnxEstimator(Estimator):
         return self.predict_proba_checked(self._checked(X))
 
     def predict_proba_checked(self, x: np.ndarray) -> np.ndarray:
-        """The graph's first output for a validated batch (for a classifier: its probabilities)."""
+        """The graph's first output for a validated batch (for a classifier: its probabilities);
+        on a routed card, each frame's from the model the router picks for it."""
+        route = self.prepared_state("route_")
+        if route is None or len(x) == 0:
+            return self._own_proba_checked(x)
+        generic = route[0].generic(x)
+        if not generic.any():
+            return self._own_proba_checked(x)
+        if generic.all():
+            return route[1].predict_proba_checked(x)
+        out = np.empty((len(x), *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32)
+        out[~generic] = self._own_proba_checked(x[~generic])
+        out[generic] = route[1].predict_proba_checked(x[generic])
+        return out
+
+    def _own_proba_checked(self, x: np.ndarray) -> np.ndarray:
+        """:meth:`predict_proba_checked` by this card's own graph."""
         # the session's run, the first output's name (further outputs, e.g. a residual, are not
         # needed here) and the input's name, looked up once in prepare
         run, output, input_name = self.prepared_state("run_")
@@ -314,17 +385,20 @@ class OnnxEstimator(Estimator):
         :meth:`predict_proba_checked`)."""
         self.prepared_state("run_")
         run = self._one_frame_run(bounds=(0.0, float("inf"), False))  # its check is not used here
-        return None if run is None else run.run_checked
+        own = None if run is None else run.run_checked
+        routed = self._routed_run(own, lambda generic: generic.frame_runner())
+        return routed.run_checked if isinstance(routed, RoutedFrameRun) else routed
 
-    def one_frame_run(self) -> OneFrameRun | None:
+    def one_frame_run(self) -> OneFrameRun | RoutedFrameRun | None:
         """The batch-1 path of :meth:`predict_proba_checked` with its own check and buffers
-        (:class:`~tactile_learn.onnx_one_frame.OneFrameRun`; :meth:`predict` has one, a
-        :class:`~tactile_learn.frame_stream.FrameStream` builds another): ``run(frames)`` gives the
-        graph's finished first output for a plain valid float32 batch of one frame, ``None`` for
-        anything else. ``None`` where it does not apply (a calibrated film, whose readings are
-        mapped; a graph whose first output is not float32 or has no fixed frame shape)."""
+        (:class:`~tactile_learn.onnx_one_frame.OneFrameRun`, or a :class:`RoutedFrameRun` of two;
+        :meth:`predict` has one, a :class:`~tactile_learn.frame_stream.FrameStream` builds another):
+        ``run(frames)`` gives the graph's finished first output for a plain valid float32 batch of
+        one frame, ``None`` for anything else. ``None`` where it does not apply (a calibrated film,
+        whose readings are mapped; a graph whose first output is not float32 or has no fixed frame
+        shape)."""
         self.prepared_state("run_")
-        return self._one_frame_run()
+        return self._routed_run(self._one_frame_run(), lambda generic: generic.one_frame_run())
 
     def _one_frame_run(self, bounds: tuple[float, float, bool] | None = None) -> OneFrameRun | None:
         """:meth:`one_frame_run`, checking frames against ``bounds`` (default: the task's)."""
@@ -353,9 +427,29 @@ class OnnxEstimator(Estimator):
         )
 
     def predict_all(self, X: np.ndarray) -> dict[str, np.ndarray]:
-        """Every output of the graph by name (the first is what :meth:`predict_proba_checked` returns)."""
-        session = self.prepared_state("session_")
+        """Every output of the graph by name (the first is what :meth:`predict_proba_checked` returns;
+        on a routed card, each frame's outputs from the model the router picks for it)."""
+        self.prepared_state("session_")
         x = self._checked(X)
+        route = self.route_
+        if route is None or len(x) == 0:
+            return self._own_all_checked(x)
+        generic = route[0].generic(x)
+        if not generic.any():
+            return self._own_all_checked(x)
+        if generic.all():
+            return route[1]._own_all_checked(x)
+        own, theirs = self._own_all_checked(x[~generic]), route[1]._own_all_checked(x[generic])
+        out = {}
+        for name, mine in own.items():
+            merged = np.empty((len(x), *mine.shape[1:]), dtype=mine.dtype)
+            merged[~generic], merged[generic] = mine, theirs[name]
+            out[name] = merged
+        return out
+
+    def _own_all_checked(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """:meth:`predict_all` of a validated batch by this card's own graph."""
+        session = self.session_
         names = [o["name"] for o in self.card_["outputs"]]
         if len(x) == 0:
             return {o["name"]: np.zeros((0, *o["shape"][1:]), dtype=np.float32) for o in self.card_["outputs"]}
@@ -374,3 +468,26 @@ class OnnxEstimator(Estimator):
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
         return self.input_check_(X)
+
+
+class RoutedFrameRun:
+    """Two one-frame runs behind a router (module docstring): each frame to the run the router picks;
+    the same contract as :class:`~tactile_learn.onnx_one_frame.OneFrameRun` (``None``: not a plain
+    valid float32 frame, take the ordinary path)."""
+
+    def __init__(self, route: PriorRoute, own: Any, generic: Any, batch_shape: tuple[int, ...]) -> None:
+        self.route, self.own, self.generic, self.batch_shape = route, own, generic, batch_shape
+
+    def __call__(self, x: Any) -> np.ndarray | None:
+        if type(x) is not np.ndarray or x.dtype is not _FLOAT32 or x.shape != self.batch_shape:
+            return None
+        return self.generic(x) if self.route.generic_frame(x) else self.own(x)
+
+    def run_checked(self, x: np.ndarray) -> np.ndarray:
+        """One frame the caller has checked (the runs' ``run_checked``, or the runs themselves where
+        they are plain functions of a checked frame)."""
+        run = self.generic if self.route.generic_frame(x) else self.own
+        return getattr(run, "run_checked", run)(x)
+
+
+_FLOAT32 = np.dtype(np.float32)
