@@ -54,18 +54,18 @@ def router_arrays(router: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
 def build(library: Path, generic: Path, generic_weights: Path | None, router: Path, out: Path, name: str) -> Path:
     from tactile_learn.prior_route import PriorRoute
 
+    arrays, router_card = router_arrays(router)  # every input read before anything is written
+    generic_card = json.loads(generic.with_suffix(".json").read_text())
+    card = json.loads(library.with_suffix(".json").read_text())
     out.mkdir(parents=True, exist_ok=True)
-    arrays, router_card = router_arrays(router)
     route_file = out / f"{name}_route.npz"
     PriorRoute.save(route_file, arrays)
-    generic_card = json.loads(generic.with_suffix(".json").read_text())
     generic_name = f"{name}_generic"
     shutil.copyfile(generic, out / f"{generic_name}.onnx")
     generic_card |= {"name": generic_name, "model_file": f"{generic_name}.onnx", "routed_by": f"{name}.json"}
     (out / f"{generic_name}.json").write_text(json.dumps(generic_card, indent=2) + "\n")
     if generic_weights is not None:
         shutil.copyfile(generic_weights, out / f"{generic_name}.pt")
-    card = json.loads(library.with_suffix(".json").read_text())
     if library.resolve() != (out / f"{name}.onnx").resolve():
         shutil.copyfile(library, out / f"{name}.onnx")
     card["route"] = {
