@@ -195,14 +195,7 @@ def shape(size: int, h_mm: float, rng: np.random.Generator) -> np.ndarray:
 
 def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
     """``n`` frames: readings (B, 32) V and the intersection map (B, 16, 16) kPa."""
-    g = scene.sensor.geometry
-    if g.n_rows != g.n_cols:
-        raise ValueError("arrangements are drawn for a square array")
-    size = g.n_rows * g.samples_per_pitch
-    h_mm = g.pitch_mm / g.samples_per_pitch
-    field = np.stack([shape(size, h_mm, rng) for _ in range(n)])
-    force = np.exp(rng.uniform(math.log(FORCE_N[0]), math.log(FORCE_N[1]), n))
-    return products.push(scene, products.to_force(field, force, h_mm), rng)
+    return products.draw_shapes(scene, n, rng, shape, FORCE_N)
 
 
 def write(n: int, seed: int, out: Path) -> Path:

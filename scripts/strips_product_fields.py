@@ -114,6 +114,26 @@ def draw(scene: Scene, n: int, rng: np.random.Generator) -> dict[str, np.ndarray
     return push(scene, to_force(field, force, h_mm), rng)
 
 
+def draw_shapes(
+    scene: Scene,
+    n: int,
+    rng: np.random.Generator,
+    shape: Callable[[int, float, np.random.Generator], np.ndarray],
+    force_n: tuple[float, float],
+) -> dict[str, np.ndarray]:
+    """``n`` frames of ``shape(size, h_mm, rng)`` fields on a square array's fine lattice, each scaled to
+    a total load drawn log-uniform in ``force_n`` (N), pushed through the sensor (:func:`push`): the
+    random-shape and arrangement scripts' frames (the shapes first, then the loads, from ``rng``)."""
+    g = scene.sensor.geometry
+    if g.n_rows != g.n_cols:
+        raise ValueError(f"shapes are drawn for a square array, {scene.name!r} is {g.n_rows} x {g.n_cols}")
+    size = g.n_rows * g.samples_per_pitch
+    h_mm = g.pitch_mm / g.samples_per_pitch
+    field = np.stack([shape(size, h_mm, rng) for _ in range(n)])
+    force = np.exp(rng.uniform(math.log(force_n[0]), math.log(force_n[1]), n))
+    return push(scene, to_force(field, force, h_mm), rng)
+
+
 def to_force(field: np.ndarray, force_n: np.ndarray, h_mm: float) -> np.ndarray:
     """Fields (B, fine rows, fine columns) scaled in place to kPa whose integral over the cells
     (``h_mm``^2 mm^2 each) is each frame's force (N): kPa = N / mm^2 * 1000."""
