@@ -28,7 +28,7 @@ import json
 from collections.abc import Callable
 from functools import cached_property
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -355,17 +355,9 @@ class OnnxEstimator(Estimator):
         """The graph's first output for a validated batch (for a classifier: its probabilities);
         on a routed card, each frame's from the model the router picks for it."""
         route = self.prepared_state("route_")
-        if route is None or len(x) == 0:
+        if route is None:
             return self._own_proba_checked(x)
-        generic = route[0].generic(x)
-        if not generic.any():
-            return self._own_proba_checked(x)
-        if generic.all():
-            return route[1].predict_proba_checked(x)
-        out = np.empty((len(x), *self.card_["outputs"][0]["shape"][1:]), dtype=np.float32)
-        out[~generic] = self._own_proba_checked(x[~generic])
-        out[generic] = route[1].predict_proba_checked(x[generic])
-        return out
+        return _by_route(route[0], x, self._own_proba_checked, route[1].predict_proba_checked, _merged)
 
     def _own_proba_checked(self, x: np.ndarray) -> np.ndarray:
         """:meth:`predict_proba_checked` by this card's own graph."""
@@ -432,20 +424,15 @@ class OnnxEstimator(Estimator):
         self.prepared_state("session_")
         x = self._checked(X)
         route = self.route_
-        if route is None or len(x) == 0:
+        if route is None:
             return self._own_all_checked(x)
-        generic = route[0].generic(x)
-        if not generic.any():
-            return self._own_all_checked(x)
-        if generic.all():
-            return route[1]._own_all_checked(x)
-        own, theirs = self._own_all_checked(x[~generic]), route[1]._own_all_checked(x[generic])
-        out = {}
-        for name, mine in own.items():
-            merged = np.empty((len(x), *mine.shape[1:]), dtype=mine.dtype)
-            merged[~generic], merged[generic] = mine, theirs[name]
-            out[name] = merged
-        return out
+
+        def merge(
+            generic: np.ndarray, own: dict[str, np.ndarray], theirs: dict[str, np.ndarray]
+        ) -> dict[str, np.ndarray]:
+            return {name: _merged(generic, values, theirs[name]) for name, values in own.items()}
+
+        return _by_route(route[0], x, self._own_all_checked, route[1]._own_all_checked, merge)
 
     def _own_all_checked(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """:meth:`predict_all` of a validated batch by this card's own graph."""
@@ -468,6 +455,33 @@ class OnnxEstimator(Estimator):
 
     def _checked(self, X: np.ndarray) -> np.ndarray:
         return self.input_check_(X)
+
+
+_Result = TypeVar("_Result")
+
+
+def _by_route(
+    route: PriorRoute,
+    x: np.ndarray,
+    own: Callable[[np.ndarray], _Result],
+    generic: Callable[[np.ndarray], _Result],
+    merge: Callable[[np.ndarray, _Result, _Result], _Result],
+) -> _Result:
+    """A validated batch's result on a routed card: ``own`` of the frames the router keeps, ``generic``
+    of those it sends on, ``merge(generic_mask, own_part, generic_part)`` where it splits the batch."""
+    sent = route.generic(x)
+    if len(x) == 0 or not sent.any():
+        return own(x)
+    if sent.all():
+        return generic(x)
+    return merge(sent, own(x[~sent]), generic(x[sent]))
+
+
+def _merged(generic: np.ndarray, own: np.ndarray, theirs: np.ndarray) -> np.ndarray:
+    """One batch from its two parts: ``theirs`` in the rows ``generic`` marks, ``own`` in the others."""
+    out = np.empty((len(generic), *own.shape[1:]), dtype=own.dtype)
+    out[~generic], out[generic] = own, theirs
+    return out
 
 
 class RoutedFrameRun:
