@@ -6,11 +6,12 @@ has them), and ``OUT/NAME_route.npz`` (the router's weights and the features' no
 Nothing is retrained or re-exported: the two graphs are copied byte for byte, and the router's weights
 are read from its ONNX initializers, so the runtime's routing is the script's (``strips_prior_router``'s
 ``PriorRouted``) to float32 rounding of the router's logit; ``--check`` compares the two on frames
-and reports every frame routed differently::
+and reports every frame routed differently; ``--latency`` times the routed model's batch-1 ``predict``
+against the library model's, interleaved on the same frames (onnxruntime, one thread), medians::
 
     python scripts/strips_route_ship.py --library models/strips16.onnx --generic runs/shapes/model.onnx \\
         --generic-weights runs/shapes/run/model.pt --router runs/prior-router --out models --name strips16 \\
-        --check data/strips16-test
+        --check data/strips16-test --latency data/shapes-train
 """
 
 from __future__ import annotations
@@ -111,6 +112,27 @@ def check(path: Path, router: Path, data: Path) -> dict[str, Any]:
     }
 
 
+def latency(path: Path, library: Path, data: Path, frames: int = 64, rounds: int = 30) -> dict[str, Any]:
+    """Batch-1 ``predict`` of the routed model and of the library model alone, in turns on the same
+    ``frames`` frames of ``data`` (each round one pass over them): the median call (us), and the share
+    of those frames the router sends on."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from strips_experts import read_frames
+
+    from tactile_learn.runtime import OnnxEstimator
+    from tactile_learn.timing import interleaved_times, summary_us
+
+    readings = read_frames(data)[0][:frames]
+    routed = OnnxEstimator(path, threads=1).prepare()
+    calls = {"library": OnnxEstimator(library, threads=1).prepare().predict, "routed": routed.predict}
+    times = interleaved_times(calls, readings, rounds=rounds, per_round=frames)
+    return {
+        "frames": len(readings),
+        "generic_share": float(routed.route_[0].generic(readings).mean()),
+        **{f"{k}_b1_median_us": summary_us(v)["median_us"] for k, v in times.items()},
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--library", type=Path, default=Path("models/strips16.onnx"))
@@ -120,11 +142,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--name", default="strips16")
     parser.add_argument("--check", type=Path, help="a dataset to compare the routing with the script's on")
+    parser.add_argument("--latency", type=Path, help="a dataset whose frames time batch 1 against the library model")
     args = parser.parse_args(argv)
     path = build(args.library, args.generic, args.generic_weights, args.router, args.out, args.name)
     print(f"wrote {path} (routed), {args.out / (args.name + '_generic.onnx')}, {args.out / (args.name + '_route.npz')}")
     if args.check is not None:
         print(json.dumps(check(path, args.router, args.check), indent=1))
+    if args.latency is not None:
+        print(json.dumps(latency(path, args.library, args.latency), indent=1))
     return 0
 
 

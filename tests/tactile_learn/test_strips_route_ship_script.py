@@ -73,3 +73,14 @@ def test_the_built_card_routes_as_the_exported_router_decides(tmp_path: Path) ->
     assert np.array_equal(generic[clear], (logit >= 0)[clear])
     built = json.loads(path.with_suffix(".json").read_text())["route"]
     assert built["generic_model"] == "s16_generic.onnx" and built["threshold"] == 0.5
+
+
+def test_latency_reports_both_medians_and_the_routed_share(tmp_path: Path) -> None:
+    _, router = exported_router(tmp_path / "router", np.random.default_rng(4))
+    path = ship.build(MODELS / "strips16.onnx", MODELS / "strips16_small.onnx", None, router, tmp_path / "out", "s16")
+    from synth.dataset import generate
+
+    generate(load_scene("strips16_mixed"), 40, 5, tmp_path / "frames")
+    result = ship.latency(path, MODELS / "strips16.onnx", tmp_path / "frames", frames=8, rounds=3)
+    assert result["frames"] == 8 and 0.0 <= result["generic_share"] <= 1.0
+    assert result["library_b1_median_us"] > 0 and result["routed_b1_median_us"] > 0
