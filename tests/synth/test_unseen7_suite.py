@@ -16,8 +16,8 @@ from functools import cache
 import pytest
 
 from synth.scene import Scene, load_scene
-from synth.sensors.strips.config import ContactObject
-from synth.suite import Suite, load_suite
+from synth.sensors.strips.config import ContactObject, StripStimuli
+from synth.suite import Family, Suite, load_suite
 from tests.synth.test_objects_scenes import draw
 from tests.synth.test_unseen3_suite import EARLIER_SUITES, assert_no_frame_drawn, assert_outside, novelty
 from tests.synth.test_unseen3_suite import assert_own_frames_accepted as assert_own_frames_accepted_by
@@ -58,6 +58,20 @@ def braille(word: tuple[tuple[int, ...], ...]) -> tuple[tuple[float, float], ...
 EXIT = ((1, 5), (1, 3, 4, 6), (2, 4), (2, 3, 4, 5))
 #: l (1, 2, 3), i (2, 4), f (1, 2, 4), t (2, 3, 4, 5): another word of twelve dots
 LIFT = ((1, 2, 3), (2, 4), (1, 2, 4), (2, 3, 4, 5))
+
+
+def with_stimuli(fam: Family, **changes: object) -> Scene:
+    """The family's scene with some of its stimuli's fields replaced."""
+    stimuli = dataclasses.replace(fam.scene.sensor.stimuli, **changes)
+    return dataclasses.replace(fam.scene, sensor=dataclasses.replace(fam.scene.sensor, stimuli=stimuli))
+
+
+def assert_told_apart(stimuli: StripStimuli, other: Scene) -> None:
+    """``other`` (a family's scene changed in one respect) is another object: the family's predicate
+    (``stimuli``) rejects every one of 500 frames of it, and ``other``'s own accepts them all."""
+    contacts, names = draw(other, 500, seed=4)
+    assert not looks_like(stimuli, contacts, names).any()
+    assert looks_like(other.sensor.stimuli, contacts, names).all()
 
 
 @pytest.fixture(scope="module")
@@ -125,12 +139,8 @@ def test_a_circles_predicate_tells_the_shower_head_from_a_square_grid(suite: Sui
     grid = dataclasses.replace(
         stimuli.object, offsets_mm=tuple((x, y) for y in (-1.2, -0.4, 0.4, 1.2) for x in (-1.2, -0.4, 0.4, 1.2))
     )
-    gridded = dataclasses.replace(
-        fam.scene, sensor=dataclasses.replace(fam.scene.sensor, stimuli=dataclasses.replace(stimuli, object=grid))
-    )
-    contacts, names = draw(gridded, 500, seed=4)
-    assert not looks_like(stimuli, contacts, names).any()
-    assert looks_like(gridded.sensor.stimuli, contacts, names).all()
+    gridded = with_stimuli(fam, object=grid)
+    assert_told_apart(stimuli, gridded)
 
 
 def test_the_braille_predicate_reads_the_word(suite: Suite) -> None:
@@ -140,12 +150,8 @@ def test_the_braille_predicate_reads_the_word(suite: Suite) -> None:
     stimuli = fam.scene.sensor.stimuli
     assert stimuli.object is not None
     lift: ContactObject = dataclasses.replace(stimuli.object, offsets_mm=braille(LIFT))
-    other = dataclasses.replace(
-        fam.scene, sensor=dataclasses.replace(fam.scene.sensor, stimuli=dataclasses.replace(stimuli, object=lift))
-    )
-    contacts, names = draw(other, 500, seed=4)
-    assert not looks_like(stimuli, contacts, names).any()
-    assert looks_like(other.sensor.stimuli, contacts, names).all()
+    other = with_stimuli(fam, object=lift)
+    assert_told_apart(stimuli, other)
 
 
 def test_the_chain_predicate_counts_its_flat_and_upright_links(suite: Suite) -> None:
@@ -153,11 +159,8 @@ def test_the_chain_predicate_counts_its_flat_and_upright_links(suite: Suite) -> 
     arrangement but not the kinds' count: the chain's predicate rejects every frame of them."""
     fam = suite.family("belcher_chain")
     stimuli = fam.scene.sensor.stimuli
-    flat = dataclasses.replace(stimuli, kinds=(stimuli.kinds[0],) * 9)
-    flattened = dataclasses.replace(fam.scene, sensor=dataclasses.replace(fam.scene.sensor, stimuli=flat))
-    contacts, names = draw(flattened, 500, seed=4)
-    assert not looks_like(stimuli, contacts, names).any()
-    assert looks_like(flat, contacts, names).all()
+    flattened = with_stimuli(fam, kinds=(stimuli.kinds[0],) * 9)
+    assert_told_apart(stimuli, flattened)
 
 
 @pytest.mark.parametrize("reference", sorted(references()))
