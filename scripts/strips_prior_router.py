@@ -47,11 +47,21 @@ SUITES = ("strips16_ood", "strips16_unseen2", "strips16_unseen3", "strips16_unse
           "strips16_unseen6")  # fmt: skip
 
 
-def train(out: Path, log: Any = print) -> dict[str, Any]:
+def train(
+    out: Path,
+    generic: dict[str, int] | None = None,
+    models: dict[str, str] | None = None,
+    log: Any = print,
+) -> dict[str, Any]:
+    """Fit the router on :data:`LIBRARY`'s frames (label 0) and ``generic``'s (label 1; default
+    :data:`GENERIC`), folder -> first frames; write ``out/router.onnx`` and its card (``models``: the two
+    members, default :data:`MODELS`)."""
     import torch
 
+    generic = GENERIC if generic is None else generic
+    models = MODELS if models is None else models
     xs, ys = [], []
-    for folders, label in ((LIBRARY, 0.0), (GENERIC, 1.0)):
+    for folders, label in ((LIBRARY, 0.0), (generic, 1.0)):
         for folder, n in folders.items():
             readings, _ = read_frames(Path(folder))
             xs.append(features(readings[:n]))
@@ -72,7 +82,7 @@ def train(out: Path, log: Any = print) -> dict[str, Any]:
     log(f"router: held-out accuracy {accuracy:.4f} on {len(val)} frames")
     export_mlp(net, xt[:1], out / "router.onnx", "logit")
     card = {"mean": mean.tolist(), "std": std.tolist(), "threshold": THRESHOLD, "held_out_accuracy": accuracy}
-    card |= {"library": LIBRARY, "generic": GENERIC, "models": MODELS}
+    card |= {"library": LIBRARY, "generic": generic, "models": models}
     (out / "router.json").write_text(json.dumps(card, indent=1))
     return card
 
