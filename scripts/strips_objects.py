@@ -35,9 +35,10 @@ SEED = 12000
 FRAMES_PER_FAMILY = 1500
 ROUTER_FRAMES_PER_FAMILY = 300
 #: ``arr``'s training mixture (docs/strips.md, "Round 8"): the shape library, two spheres, product fields,
-#: random shapes and arrangements; the objects are added to it
-BASE_DATA = ("data/pf-wide-train", "data/pf-spheres-train", "data/products-train", "data/shapes-train",
-             "data/arrangements-train")  # fmt: skip
+#: random shapes and arrangements; the objects are added to it. Arrangements first: ``train`` checks the
+#: validation set's scene against the first folder's
+BASE_DATA = ("data/arrangements-train", "data/pf-wide-train", "data/pf-spheres-train", "data/products-train",
+             "data/shapes-train")  # fmt: skip
 INIT = "runs/arr/model.pt"
 VAL = "data/arrangements-val"
 EPOCHS, LR = 6, 2e-4
