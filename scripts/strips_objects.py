@@ -9,6 +9,7 @@ router that sends a frame to the objects' expert or to ``strips16``, and prints 
 
     python scripts/strips_objects.py data --rounds 8 --out data/objects          # 1,500 frames a family
     python scripts/strips_objects.py plan --rounds 7 --data data/objects --out runs/objects7
+    python scripts/strips_objects.py plan --rounds 8 --teacher --data data/objects --out runs/objects8d
     python scripts/strips_objects.py router --rounds 7 --data data/objects --out runs/objects-router7
 
 ``--rounds K`` means rounds 1..K. Family ``i`` (in the suite's order) of round ``k`` is drawn at seed
@@ -42,6 +43,9 @@ BASE_DATA = ("data/arrangements-train", "data/pf-wide-train", "data/pf-spheres-t
 INIT = "runs/arr/model.pt"
 VAL = "data/arrangements-val"
 EPOCHS, LR = 6, 2e-4
+#: round 10's experts: the default teaches the frames of its own prior (the shape library, two spheres)
+TEACHER = "models/strips16.pt"
+TAUGHT = ("data/pf-wide-train", "data/pf-spheres-train")
 #: the re-trained router's generic side: the stop-30 router's generic frames, arrangements and the objects
 ROUTER_GENERIC_EXTRA = {"data/arrangements-train": 10000}
 
@@ -72,13 +76,16 @@ def write_data(rounds: int, root: Path, n: int = FRAMES_PER_FAMILY, log: Any = p
     log(f"{rounds} rounds of objects in {time.perf_counter() - start:.0f} s -> {root}")
 
 
-def plan(rounds: int, root: Path, out: Path) -> str:
-    """The training command of the objects' expert on rounds 1..``rounds`` (one thread)."""
+def plan(rounds: int, root: Path, out: Path, teacher: bool = False) -> str:
+    """The training command of the objects' expert on rounds 1..``rounds`` (one thread); ``teacher``:
+    ``strips16``'s maps are the targets of the shape library's and the two spheres' frames
+    (:data:`TAUGHT`), the truth of the rest (docs/strips.md, "Round 10")."""
     folders = [str(f) for *_, f in object_folders(rounds, root)]
-    return (
+    command = (
         f"tactile-learn train --task strips --data {' '.join([*BASE_DATA, *folders])} --val {VAL} --out {out} "
         f"--init {INIT} --epochs {EPOCHS} --lr {LR} --threads 1 --val-limit 4000"
     )
+    return command + (f" --teacher {TEACHER} --teacher-data {' '.join(TAUGHT)}" if teacher else "")
 
 
 def train_router(rounds: int, root: Path, out: Path, expert: str) -> dict[str, Any]:
@@ -100,13 +107,15 @@ def main(argv: list[str] | None = None) -> int:
         p.add_argument("--out", type=Path, required=True)
         if name != "data":
             p.add_argument("--data", type=Path, default=Path("data/objects"))
+        if name == "plan":
+            p.add_argument("--teacher", action="store_true", help=f"{TEACHER} teaches {', '.join(TAUGHT)}")
         if name == "router":
             p.add_argument("--expert", required=True, help="the objects' expert's ONNX file")
     args = parser.parse_args(argv)
     if args.command == "data":
         write_data(args.rounds, args.out)
     elif args.command == "plan":
-        print(plan(args.rounds, args.data, args.out))
+        print(plan(args.rounds, args.data, args.out, args.teacher))
     else:
         card = train_router(args.rounds, args.data, args.out, args.expert)
         print(json.dumps({k: card[k] for k in ("held_out_accuracy", "threshold")}))

@@ -50,6 +50,12 @@ def test_the_plan_trains_on_the_base_mixture_and_every_object(tmp_path: Path) ->
     for folder in [*objects.BASE_DATA, *(str(f) for *_, f in objects.object_folders(2, tmp_path))]:
         assert f" {folder} " in command
     assert "--init runs/arr/model.pt" in command and "--threads 1" in command and "--out runs/x" in command
+    assert "--teacher" not in command
+    taught = objects.plan(2, tmp_path, Path("runs/x"), teacher=True)
+    assert taught.startswith(command) and taught.endswith(
+        " --teacher models/strips16.pt --teacher-data data/pf-wide-train data/pf-spheres-train"
+    )
+    assert set(objects.TAUGHT) <= set(objects.BASE_DATA)  # taught frames are frames of the mixture
 
 
 def test_the_router_adds_the_objects_to_the_generic_side(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
