@@ -90,12 +90,15 @@ def train(
 class PriorRouted:
     """The two models behind the router: each frame answered by the model of the prior it calls for."""
 
-    def __init__(self, router: Path) -> None:
+    def __init__(self, router: Path, models: dict[str, str] | None = None) -> None:
+        """``models``: the library and generic members (default: the ones the router's card names)."""
         from tactile_learn.runtime import OnnxEstimator
 
         card, self.router = load_mlp(router, "router")
         self.threshold = float(card["threshold"])
-        self.models = {k: OnnxEstimator(path, threads=1).prepare() for k, path in card["models"].items()}
+        paths = card["models"] if models is None else models
+        # each member alone: the library card (models/strips16.onnx) routes frames itself since stop 32
+        self.models = {k: OnnxEstimator(path, threads=1, route=False).prepare() for k, path in paths.items()}
 
     def generic(self, readings: np.ndarray) -> np.ndarray:
         logit = self.router(readings)[:, 0]

@@ -88,8 +88,9 @@ def build(library: Path, generic: Path, generic_weights: Path | None, router: Pa
     return path
 
 
-def check(path: Path, router: Path, data: Path) -> dict[str, Any]:
-    """The routed model against the script's routing on ``data``'s frames: frames routed differently, the
+def check(path: Path, router: Path, data: Path, members: dict[str, str] | None = None) -> dict[str, Any]:
+    """The routed model against the script's routing of the same ``members`` (library and generic model
+    files; default: those the router's card names) on ``data``'s frames: frames routed differently, the
     largest difference of the maps, and single frames against the batch."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from strips_experts import read_frames
@@ -99,7 +100,7 @@ def check(path: Path, router: Path, data: Path) -> dict[str, Any]:
 
     readings, _ = read_frames(data)
     model = OnnxEstimator(path, threads=1).prepare()
-    script = PriorRouted(router)
+    script = PriorRouted(router, members)
     ours, theirs = model.route_[0].generic(readings), script.generic(readings)
     batch = model.predict(readings)
     single = np.concatenate([model.predict(readings[i : i + 1]) for i in range(min(len(readings), 500))])
@@ -147,7 +148,8 @@ def main(argv: list[str] | None = None) -> int:
     path = build(args.library, args.generic, args.generic_weights, args.router, args.out, args.name)
     print(f"wrote {path} (routed), {args.out / (args.name + '_generic.onnx')}, {args.out / (args.name + '_route.npz')}")
     if args.check is not None:
-        print(json.dumps(check(path, args.router, args.check), indent=1))
+        members = {"library": str(args.library), "generic": str(args.generic)}
+        print(json.dumps(check(path, args.router, args.check, members), indent=1))
     if args.latency is not None:
         print(json.dumps(latency(path, args.library, args.latency), indent=1))
     return 0

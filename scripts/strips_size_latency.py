@@ -82,6 +82,7 @@ def untrained_model(size: str, folder: Path, seed: int) -> Path:
     example = torch.from_numpy(simulate_shard(scene, seed, 0, 2)["readings"])
     to_onnx(graph.eval(), example, path, task.input_key, outputs, {**metadata, "size": name})
     own = copy.deepcopy(card)
+    own.pop("route", None)  # one untrained network: the shipped card's routed member is not this size's
     own.update(name=name, model_file=path.name, model_sha256=sha256_file(path), model_bytes=path.stat().st_size)
     own["network"] = {"size": size, "parameters": int(sum(p.numel() for p in net.parameters()))}
     atomic_write_json(card_path(path), own)

@@ -90,6 +90,7 @@ class OnnxEstimator(Estimator):
         backend: str = "onnxruntime",
         card: dict[str, Any] | None = None,
         fuse: bool = True,
+        route: bool = True,
     ) -> None:
         self.path = path
         self.threads = threads
@@ -102,6 +103,9 @@ class OnnxEstimator(Estimator):
         #: run the graph with onnxruntime's fusions the exporter leaves out (:mod:`tactile_learn.onnx_fuse`:
         #: the same function in fewer nodes; the file on disk is never changed); False: the file's graph
         self.fuse = fuse
+        #: follow the card's ``route`` block (module docstring); False: this card's own graph answers
+        #: every frame (a routed card's library network alone, as research and graph checks need it)
+        self.route = route
         self.name = Path(path).name
 
     def prepare(self) -> OnnxEstimator:
@@ -136,7 +140,7 @@ class OnnxEstimator(Estimator):
         """The card's ``route`` block loaded and checked (module docstring), or ``None``."""
         from tactile_learn.prior_route import PriorRoute
 
-        spec = self.card_.get("route")
+        spec = self.card_.get("route") if self.route else None
         if spec is None:
             return None
         where = card_path(self.path)

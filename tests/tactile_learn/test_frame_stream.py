@@ -134,7 +134,7 @@ def test_idle_floor_in_cards_and_gate_errors(tmp_path: Path) -> None:
     del card["idle"]
     (tmp_path / "m.json").write_text(json.dumps(card))
     with pytest.raises(ModelError, match=r"idle_floor\.py"):
-        FrameStream(OnnxEstimator(tmp_path / "m.onnx"), gate=True)
+        FrameStream(OnnxEstimator(tmp_path / "m.onnx", route=False), gate=True)  # (its routed member stays behind)
 
 
 def test_run_cli_writes_predictions_and_skips_idle(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -97,7 +97,7 @@ def routed(tmp_path_factory: pytest.TempPathFactory, cut: float) -> OnnxEstimato
 @pytest.fixture(scope="module")
 def members() -> tuple[OnnxEstimator, OnnxEstimator]:
     scene = load_scene("strips16_mixed")
-    own = OnnxEstimator(MODELS / "strips16.onnx").prepare()
+    own = OnnxEstimator(MODELS / "strips16.onnx", route=False).prepare()  # (the shipped card routes too)
     generic = OnnxEstimator(MODELS / "strips16_small.onnx", scene=own.scene_).prepare()
     assert scene.task == "strips"
     return own, generic
@@ -250,3 +250,14 @@ def test_a_missing_corrupt_or_mismatched_member_is_refused(tmp_path: Path, cut: 
     (path.parent / "member.json").write_text(json.dumps(member_card))
     with pytest.raises(ModelError, match="routes frames itself"):
         OnnxEstimator(path).prepare()
+
+
+def test_route_false_runs_the_cards_own_graph_on_every_frame(
+    routed: OnnxEstimator, members: tuple[OnnxEstimator, OnnxEstimator], readings: np.ndarray
+) -> None:
+    own, _ = members
+    alone = OnnxEstimator(routed.path, route=False).prepare()
+    assert alone.route_ is None and routed.route_ is not None
+    assert routed.route_[0].generic(readings).any()  # the routed card answers some frames otherwise
+    np.testing.assert_array_equal(alone.predict(readings), own.predict(readings))
+    np.testing.assert_array_equal(alone.predict(readings[:1]), own.predict(readings[:1]))

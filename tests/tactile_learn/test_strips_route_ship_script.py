@@ -84,3 +84,23 @@ def test_latency_reports_both_medians_and_the_routed_share(tmp_path: Path) -> No
     result = ship.latency(path, MODELS / "strips16.onnx", tmp_path / "frames", frames=8, rounds=3)
     assert result["frames"] == 8 and 0.0 <= result["generic_share"] <= 1.0
     assert result["library_b1_median_us"] > 0 and result["routed_b1_median_us"] > 0
+
+
+def test_check_compares_with_the_script_routing_the_same_members(tmp_path: Path) -> None:
+    from synth.dataset import generate
+
+    _, router = exported_router(tmp_path / "router", np.random.default_rng(5))
+    path = ship.build(MODELS / "strips16.onnx", MODELS / "strips16_small.onnx", None, router, tmp_path / "out", "s16")
+    generate(load_scene("strips16_mixed"), 60, 6, tmp_path / "frames")
+    members = {"library": str(MODELS / "strips16.onnx"), "generic": str(MODELS / "strips16_small.onnx")}
+    result = ship.check(path, router, tmp_path / "frames", members)
+    assert result["frames"] == 60 and result["routed_differently"] <= 1  # (a logit within rounding of 0)
+    assert 0.0 < result["generic_share"] < 1.0
+    assert result["max_abs_diff_single_vs_batch"] < 1e-2
+    if result["routed_differently"] == 0:
+        assert result["max_abs_diff_vs_script"] < 1e-3
+    # the same routing with another generic member is not the routed model: the comparison can fail
+    other = {"library": members["library"], "generic": str(MODELS / "strips16_spheres.onnx")}
+    assert ship.check(path, router, tmp_path / "frames", other)["max_abs_diff_vs_script"] > 10 * max(
+        result["max_abs_diff_vs_script"], 1e-3
+    )
