@@ -120,7 +120,9 @@ def _learned_variants(task_name: str, scene: Scene) -> list[tuple[str, Callable[
             variants.append((f"{name}+check", partial(_checked_model, path)))
         weights = path.with_suffix(".pt")
         if weights.is_file() and _torch_available():
-            variants.append((name, partial(_torch_model, weights, card)))
+            # a routed card's weights are its own graph's: torch runs that network alone, not the route
+            label = f"{name} (own graph)" if "route" in card else name
+            variants.append((label, partial(_torch_model, weights, card)))
     return variants
 
 

@@ -127,3 +127,18 @@ def test_bench_cli_writes_json_table_and_plot(workdir: Path, capsys: pytest.Capt
     assert Path("b.md").read_text().startswith("**strips**")
     assert Path("b.png").exists()
     assert "| intersection |" in capsys.readouterr().out
+
+
+def test_a_routed_cards_torch_row_is_labelled_as_its_own_graph() -> None:
+    """The torch weights beside a routed card are its own network's: the benchmark must not present
+    them as the routed model."""
+    pytest.importorskip("torch")
+    from tactile_learn.bench import _learned_variants
+    from tactile_learn.runtime import read_card
+    from tests.paths import REPO_ROOT
+
+    assert "route" in read_card(REPO_ROOT / "models" / "strips16.onnx")  # (the shipped default routes since stop 32)
+    labels = [label for label, _ in _learned_variants("strips", load_scene("strips16"))]
+    assert labels.count("strips16") == 2  # onnxruntime, 1 and 2 threads: the routed model
+    assert "strips16 (own graph)" in labels and "strips16_small" in labels
+    assert "strips16_small (own graph)" not in labels  # unrouted cards keep their name
