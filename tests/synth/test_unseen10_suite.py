@@ -21,35 +21,24 @@ from synth.scene import Scene, load_scene
 from synth.sensors.strips.config import StimulusKind
 from synth.suite import Suite, load_suite
 from tests.synth.test_objects_scenes import draw
-from tests.synth.test_unseen3_suite import EARLIER_SUITES, assert_no_frame_drawn, assert_outside, novelty
+from tests.synth.test_unseen3_suite import assert_no_frame_drawn, assert_outside, novelty
 from tests.synth.test_unseen3_suite import assert_own_frames_accepted as assert_own_frames_accepted_by
 from tests.synth.test_unseen4_suite import looks_like
 from tests.synth.test_unseen5_suite import STRIP_SCENES, assert_objects_but_the_single_contacts
-from tests.synth.test_unseen7_suite import assert_told_apart, with_stimuli
+from tests.synth.test_unseen7_suite import assert_told_apart, references_with, rounds_through, with_stimuli
 from tests.synth.test_unseen9_suite import references as round9_references
 from tests.synth.test_unseen_suite import assert_frames_within_range
 
 SUITE = "strips16_unseen10"
 ROUND_9 = "strips16_unseen9"
-EARLIER_ROUNDS = (
-    *EARLIER_SUITES,
-    "strips16_unseen3",
-    "strips16_unseen4",
-    "strips16_unseen5",
-    "strips16_unseen6",
-    "strips16_unseen7",
-    "strips16_unseen8",
-    ROUND_9,
-)
+EARLIER_ROUNDS = rounds_through(9)
 
 
 @cache
 def references() -> dict[str, Scene]:
     """Round 9's references (every strip scene, the OOD suite, rounds 1-8), round 9's families, and any
     strip scene added since."""
-    refs = {**round9_references(), **{f"{ROUND_9}/{f.name}": f.scene for f in load_suite(ROUND_9).families}}
-    refs.update({name: load_scene(name) for name in STRIP_SCENES if name not in refs})
-    return refs
+    return references_with(round9_references(), ROUND_9)
 
 
 def middle(spec: StimulusKind, name: str) -> float:

@@ -28,7 +28,21 @@ from tests.synth.test_unseen_suite import assert_frames_within_range
 
 SUITE = "strips16_unseen7"
 ROUND_6 = "strips16_unseen6"
-EARLIER_ROUNDS = (*EARLIER_SUITES, "strips16_unseen3", "strips16_unseen4", "strips16_unseen5", ROUND_6)
+
+
+def rounds_through(last: int) -> tuple[str, ...]:
+    """The OOD suite and the unseen rounds 1..``last``: the suites a later round must lie outside."""
+    return (*EARLIER_SUITES, *(f"strips16_unseen{k}" for k in range(3, last + 1)))
+
+
+def references_with(previous: dict[str, Scene], round_suite: str) -> dict[str, Scene]:
+    """``previous`` references, the families of ``round_suite``, and any strip scene added since."""
+    refs = {**previous, **{f"{round_suite}/{f.name}": f.scene for f in load_suite(round_suite).families}}
+    refs.update({name: load_scene(name) for name in STRIP_SCENES if name not in refs})
+    return refs
+
+
+EARLIER_ROUNDS = rounds_through(6)
 #: braille's six dots of a cell (1-3 down the left column, 4-6 down the right), 2.5 mm apart
 BRAILLE_DOTS = {1: (0.0, 0.0), 2: (0.0, -2.5), 3: (0.0, -5.0), 4: (2.5, 0.0), 5: (2.5, -2.5), 6: (2.5, -5.0)}
 #: a braille cell's pitch along a line (mm)
@@ -39,9 +53,7 @@ BRAILLE_CELL_MM = 6.2
 def references() -> dict[str, Scene]:
     """Round 6's references (every strip scene, the OOD suite, rounds 1-5), round 6's families, and any
     strip scene added since."""
-    refs = {**round6_references(), **{f"{ROUND_6}/{f.name}": f.scene for f in load_suite(ROUND_6).families}}
-    refs.update({name: load_scene(name) for name in STRIP_SCENES if name not in refs})
-    return refs
+    return references_with(round6_references(), ROUND_6)
 
 
 def braille(word: tuple[tuple[int, ...], ...]) -> tuple[tuple[float, float], ...]:

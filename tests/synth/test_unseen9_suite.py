@@ -19,34 +19,24 @@ import pytest
 from synth.scene import Scene, load_scene
 from synth.stimuli import ContactBatch, rasterize, window_cells
 from synth.suite import Suite, load_suite
-from tests.synth.test_unseen3_suite import EARLIER_SUITES, assert_no_frame_drawn, assert_outside, novelty
+from tests.synth.test_unseen3_suite import assert_no_frame_drawn, assert_outside, novelty
 from tests.synth.test_unseen3_suite import assert_own_frames_accepted as assert_own_frames_accepted_by
 from tests.synth.test_unseen4_suite import looks_like
 from tests.synth.test_unseen5_suite import STRIP_SCENES, assert_objects_but_the_single_contacts
-from tests.synth.test_unseen7_suite import assert_told_apart, with_stimuli
+from tests.synth.test_unseen7_suite import assert_told_apart, references_with, rounds_through, with_stimuli
 from tests.synth.test_unseen8_suite import references as round8_references
 from tests.synth.test_unseen_suite import assert_frames_within_range
 
 SUITE = "strips16_unseen9"
 ROUND_8 = "strips16_unseen8"
-EARLIER_ROUNDS = (
-    *EARLIER_SUITES,
-    "strips16_unseen3",
-    "strips16_unseen4",
-    "strips16_unseen5",
-    "strips16_unseen6",
-    "strips16_unseen7",
-    ROUND_8,
-)
+EARLIER_ROUNDS = rounds_through(8)
 
 
 @cache
 def references() -> dict[str, Scene]:
     """Round 8's references (every strip scene, the OOD suite, rounds 1-7), round 8's families, and any
     strip scene added since."""
-    refs = {**round8_references(), **{f"{ROUND_8}/{f.name}": f.scene for f in load_suite(ROUND_8).families}}
-    refs.update({name: load_scene(name) for name in STRIP_SCENES if name not in refs})
-    return refs
+    return references_with(round8_references(), ROUND_8)
 
 
 @pytest.fixture(scope="module")
