@@ -42,6 +42,18 @@ def references_with(previous: dict[str, Scene], round_suite: str) -> dict[str, S
     return refs
 
 
+def assert_round_parses(suite: Suite, earlier_rounds: tuple[str, ...], refs: dict[str, Scene], earlier: int) -> None:
+    """A round of 12 described families at 600 frames, named unlike any of ``earlier_rounds`` (which hold
+    ``earlier`` families), its references every strip scene and every earlier family."""
+    assert suite.base.name == "strips16" and len(suite.families) == 12 and suite.frames == 600
+    assert not [f.name for f in suite.families if len(f.description) <= 40]
+    assert not set(suite.names) & set().union(*(load_suite(s).names for s in earlier_rounds))
+    assert set(STRIP_SCENES) <= set(refs) and len(STRIP_SCENES) >= 20
+    families = sum(len(load_suite(s).families) for s in earlier_rounds)
+    assert families == earlier
+    assert len(refs) == len(STRIP_SCENES) + families
+
+
 EARLIER_ROUNDS = rounds_through(6)
 #: braille's six dots of a cell (1-3 down the left column, 4-6 down the right), 2.5 mm apart
 BRAILLE_DOTS = {1: (0.0, 0.0), 2: (0.0, -2.5), 3: (0.0, -5.0), 4: (2.5, 0.0), 5: (2.5, -2.5), 6: (2.5, -5.0)}
@@ -92,14 +104,7 @@ def suite() -> Suite:
 
 
 def test_suite_parses_with_its_families_described(suite: Suite) -> None:
-    assert suite.base.name == "strips16" and len(suite.families) == 12 and suite.frames == 600
-    assert not [f.name for f in suite.families if len(f.description) <= 40]
-    earlier = set().union(*(load_suite(s).names for s in EARLIER_ROUNDS))
-    assert not set(suite.names) & earlier
-    assert set(STRIP_SCENES) <= set(references()) and len(STRIP_SCENES) >= 20
-    families = sum(len(load_suite(s).families) for s in EARLIER_ROUNDS)
-    assert families == 11 + 13 + 12 + 12 + 12 + 12 + 12
-    assert len(references()) == len(STRIP_SCENES) + families
+    assert_round_parses(suite, EARLIER_ROUNDS, references(), 11 + 13 + 12 + 12 + 12 + 12 + 12)
 
 
 def test_the_braille_sign_spells_exit(suite: Suite) -> None:
