@@ -3,7 +3,9 @@
 For every family of the suites named, the margin over the best classical rule (mean r at each seed, as
 ``strips_unseen.py`` reports it) of the card's own network alone (``route=False``), its generic member alone,
 the routed card, and an oracle that picks, frame by frame, the member with the higher r (a bound no router on
-the readings can beat; the per-family choice is a looser one)::
+the readings can beat; the per-family choice is a looser one). Beside them, two ways of mixing the members'
+maps instead of choosing one: fixed blends ``(1 - w) own + w generic`` at each ``w`` of :data:`BLENDS`, and
+``soft``, each frame's blend weighted by the router's probability of "generic" (docs/strips.md, "Round 11")::
 
     python scripts/strips_route_oracle.py strips16_unseen10 strips16_ood --json results/strips_objects/frame_oracle.json
 """
@@ -24,7 +26,9 @@ from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.runtime import OnnxEstimator, read_card
 
-KINDS = ("own", "generic", "routed", "frame_oracle")
+#: the fixed blend weights of the generic member's map (``blend_W``)
+BLENDS = (0.25, 0.5, 0.75)
+KINDS = ("own", "generic", "routed", "frame_oracle", *(f"blend_{w}" for w in BLENDS), "soft")
 
 
 def members_of(model: Path) -> dict[str, OnnxEstimator]:
@@ -43,10 +47,21 @@ def family_margins(
     members: dict[str, OnnxEstimator], readings: np.ndarray, truth: np.ndarray, rules: dict[str, Any]
 ) -> dict[str, float]:
     """One family's frames: each kind's mean r minus the best rule's mean r."""
-    r = {k: pearson_per_frame(m.predict(readings), truth) for k, m in members.items()}
+    maps = {k: m.predict(readings) for k, m in members.items()}
+    r = {k: pearson_per_frame(v, truth) for k, v in maps.items()}
     best_rule = max(float(np.nanmean(pearson_per_frame(e.predict(readings), truth))) for e in rules.values())
     r["frame_oracle"] = np.fmax(r["own"], r["generic"])
-    return {k: float(np.nanmean(r[k])) - best_rule for k in KINDS}
+    own, generic = maps["own"].astype(np.float64), maps["generic"].astype(np.float64)
+    for w in BLENDS:
+        r[f"blend_{w}"] = pearson_per_frame((1.0 - w) * own + w * generic, truth)
+    routed = members["routed"].route_
+    assert routed is not None  # members_of refuses a card without a route
+    route = routed[0]
+    # the router's probability of "generic" (a NaN logit - a refused frame - never reaches here)
+    p = 1.0 / (1.0 + np.exp(-np.asarray(route.logit(readings), dtype=np.float64)))
+    p = p.reshape((-1,) + (1,) * (own.ndim - 1))
+    r["soft"] = pearson_per_frame((1.0 - p) * own + p * generic, truth)
+    return {k: float(np.nanmean(v)) - best_rule for k, v in r.items()}
 
 
 def evaluate(model: Path, suites: list[str], seeds: list[int], n: int) -> dict[str, Any]:
