@@ -11,6 +11,8 @@ router that sends a frame to the objects' expert or to ``strips16``, and prints 
     python scripts/strips_objects.py plan --rounds 7 --data data/objects --out runs/objects7
     python scripts/strips_objects.py plan --rounds 8 --teacher --data data/objects --out runs/objects8d
     python scripts/strips_objects.py router --rounds 7 --data data/objects --out runs/objects-router7
+    python scripts/strips_objects.py router --two-spheres --rounds 10 --data data/objects --out runs/sphere-router \
+        --expert runs/objects10c/candidate.onnx     # round 12's router (docs/strips.md, "Round 12")
 
 ``--rounds K`` means rounds 1..K. Family ``i`` (in the suite's order) of round ``k`` is drawn at seed
 ``SEED + 100 * k + i``; no evaluation in the repository uses seeds in that range (evaluations draw at
@@ -48,6 +50,13 @@ TEACHER = "models/strips16.pt"
 TAUGHT = ("data/pf-wide-train", "data/pf-spheres-train")
 #: the re-trained router's generic side: the stop-30 router's generic frames, arrangements and the objects
 ROUTER_GENERIC_EXTRA = {"data/arrangements-train": 10000}
+#: round 12's router: two spheres alone on the library side (the one set the library network is kept for),
+#: against as many frames of everything else - the shape library, the mixed scene, random shapes, product
+#: fields, arrangements - and :data:`SPHERE_ROUTER_FRAMES_PER_FAMILY` of each object family
+SPHERE_ROUTER_LIBRARY = {"data/pf-spheres-train": 20000}
+SPHERE_ROUTER_GENERIC = {"data/pf-wide-train": 5000, "data/shapes-mixed-train": 3000, "data/shapes-train": 3000,
+                         "data/products-train": 3000, "data/arrangements-train": 3000}  # fmt: skip
+SPHERE_ROUTER_FRAMES_PER_FAMILY = 25
 
 
 def round_suite(k: int) -> str:
@@ -98,6 +107,16 @@ def train_router(rounds: int, root: Path, out: Path, expert: str) -> dict[str, A
     return strips_prior_router.train(out, generic=generic, models=models)
 
 
+def train_sphere_router(rounds: int, root: Path, out: Path, expert: str) -> dict[str, Any]:
+    """Round 12's router: two-sphere frames go to ``strips16``, every other frame - the shape library's
+    included - to ``expert`` (:data:`SPHERE_ROUTER_LIBRARY`, :data:`SPHERE_ROUTER_GENERIC` and the
+    objects of rounds 1..``rounds``)."""
+    generic = dict(SPHERE_ROUTER_GENERIC)
+    generic |= {str(f): SPHERE_ROUTER_FRAMES_PER_FAMILY for *_, f in object_folders(rounds, root)}
+    models = {"library": strips_prior_router.MODELS["library"], "generic": expert}
+    return strips_prior_router.train(out, generic=generic, models=models, library=SPHERE_ROUTER_LIBRARY)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -111,13 +130,15 @@ def main(argv: list[str] | None = None) -> int:
             p.add_argument("--teacher", action="store_true", help=f"{TEACHER} teaches {', '.join(TAUGHT)}")
         if name == "router":
             p.add_argument("--expert", required=True, help="the objects' expert's ONNX file")
+            p.add_argument("--two-spheres", action="store_true", help="two spheres alone on the library side")
     args = parser.parse_args(argv)
     if args.command == "data":
         write_data(args.rounds, args.out)
     elif args.command == "plan":
         print(plan(args.rounds, args.data, args.out, args.teacher))
     else:
-        card = train_router(args.rounds, args.data, args.out, args.expert)
+        train_one = train_sphere_router if args.two_spheres else train_router
+        card = train_one(args.rounds, args.data, args.out, args.expert)
         print(json.dumps({k: card[k] for k in ("held_out_accuracy", "threshold")}))
     return 0
 

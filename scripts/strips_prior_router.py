@@ -52,16 +52,18 @@ def train(
     generic: dict[str, int] | None = None,
     models: dict[str, str] | None = None,
     log: Any = print,
+    library: dict[str, int] | None = None,
 ) -> dict[str, Any]:
-    """Fit the router on :data:`LIBRARY`'s frames (label 0) and ``generic``'s (label 1; default
-    :data:`GENERIC`), folder -> first frames; write ``out/router.onnx`` and its card (``models``: the two
-    members, default :data:`MODELS`)."""
+    """Fit the router on ``library``'s frames (label 0; default :data:`LIBRARY`) and ``generic``'s (label
+    1; default :data:`GENERIC`), folder -> first frames; write ``out/router.onnx`` and its card
+    (``models``: the two members, default :data:`MODELS`)."""
     import torch
 
+    library = LIBRARY if library is None else library
     generic = GENERIC if generic is None else generic
     models = MODELS if models is None else models
     xs, ys = [], []
-    for folders, label in ((LIBRARY, 0.0), (generic, 1.0)):
+    for folders, label in ((library, 0.0), (generic, 1.0)):
         for folder, n in folders.items():
             readings, _ = read_frames(Path(folder))
             xs.append(features(readings[:n]))
@@ -82,7 +84,7 @@ def train(
     log(f"router: held-out accuracy {accuracy:.4f} on {len(val)} frames")
     export_mlp(net, xt[:1], out / "router.onnx", "logit")
     card = {"mean": mean.tolist(), "std": std.tolist(), "threshold": THRESHOLD, "held_out_accuracy": accuracy}
-    card |= {"library": LIBRARY, "generic": generic, "models": models}
+    card |= {"library": library, "generic": generic, "models": models}
     (out / "router.json").write_text(json.dumps(card, indent=1))
     return card
 

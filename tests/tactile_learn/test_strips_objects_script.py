@@ -72,3 +72,29 @@ def test_the_router_adds_the_objects_to_the_generic_side(monkeypatch: pytest.Mon
     assert set(strips_prior_router.GENERIC) <= set(generic) and "data/arrangements-train" in generic
     assert sum(1 for f in generic if f.startswith(str(tmp_path))) == len(load_suite("strips16_unseen").families)
     assert seen["models"] == {"library": "models/strips16.onnx", "generic": "runs/objects7/candidate.onnx"}
+
+
+def test_the_two_sphere_router_keeps_only_two_spheres_on_the_library_side(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    seen: dict[str, object] = {}
+
+    def fake_train(
+        out: Path, generic: dict[str, int], models: dict[str, str], library: dict[str, int]
+    ) -> dict[str, object]:
+        seen.update(generic=generic, models=models, library=library)
+        return {"held_out_accuracy": 1.0, "threshold": 0.5}
+
+    monkeypatch.setattr(strips_prior_router, "train", fake_train)
+    objects.train_sphere_router(2, tmp_path, tmp_path / "r", "runs/objects10c/candidate.onnx")
+    library, generic = seen["library"], seen["generic"]
+    assert isinstance(library, dict) and isinstance(generic, dict)
+    assert library == {"data/pf-spheres-train": 20000}
+    # the shape library's own scenes are generic now: only two spheres stay with the library network
+    assert {"data/pf-wide-train", "data/shapes-mixed-train"} <= set(generic) and not set(library) & set(generic)
+    families = objects.object_folders(2, tmp_path)
+    assert [generic[str(f)] for *_, f in families] == [objects.SPHERE_ROUTER_FRAMES_PER_FAMILY] * len(families)
+    # with the 121 families of rounds 1-10, the two sides are drawn to about equal size (20,000 / 20,025)
+    ten = len(objects.object_folders(10, tmp_path)) * objects.SPHERE_ROUTER_FRAMES_PER_FAMILY
+    assert abs(sum(library.values()) - sum(objects.SPHERE_ROUTER_GENERIC.values()) - ten) <= 100
+    assert seen["models"] == {"library": "models/strips16.onnx", "generic": "runs/objects10c/candidate.onnx"}
