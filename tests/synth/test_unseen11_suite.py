@@ -13,6 +13,7 @@ Written blind, before any model was evaluated on the suite: what this round can 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable, Sequence
 from functools import cache
 
 import numpy as np
@@ -20,7 +21,7 @@ import pytest
 
 from synth.scene import Scene, load_scene
 from synth.sensors.strips.config import StimulusKind, StripStimuli
-from synth.suite import Suite, load_suite
+from synth.suite import Family, Suite, load_suite
 from tests.synth.test_unseen3_suite import assert_no_frame_drawn, assert_outside, novelty
 from tests.synth.test_unseen3_suite import assert_own_frames_accepted as assert_own_frames_accepted_by
 from tests.synth.test_unseen4_suite import looks_like
@@ -282,27 +283,30 @@ def test_the_rosettes_leaves_follow_the_golden_angle(suite: Suite) -> None:
     assert (np.diff([middle(leaf, "width_mm") for leaf in leaves]) > 0).all()
 
 
+def assert_told_apart_with_parts_at(fam: Family, offsets: Iterable[Sequence[float]]) -> None:
+    """The family's object with its parts moved to ``offsets`` (mm, rounded to the micrometre, as a suite
+    file writes them) is another object: the family's predicate rejects every frame of it."""
+    stimuli = fam.scene.sensor.stimuli
+    assert stimuli.object is not None
+    placed = tuple((round(float(x), 3), round(float(y), 3)) for x, y in offsets)
+    assert_told_apart(stimuli, with_stimuli(fam, object=dataclasses.replace(stimuli.object, offsets_mm=placed)))
+
+
 def test_a_stance_predicate_tells_the_spider_from_a_ring_of_feet(suite: Suite) -> None:
     """The same eight feet evenly round a circle of 21 mm radius (no body's axis, no front or back) are
     another object: the toy spider's predicate rejects every frame of it."""
     fam = suite.family("rubber_toy_spider")
-    stimuli = fam.scene.sensor.stimuli
-    assert stimuli.object is not None
     angles = np.deg2rad(np.arange(8) * 45.0 + 22.5)
-    ring = tuple((round(21 * float(np.cos(a)), 3), round(21 * float(np.sin(a)), 3)) for a in angles)
-    assert_told_apart(stimuli, with_stimuli(fam, object=dataclasses.replace(stimuli.object, offsets_mm=ring)))
+    assert_told_apart_with_parts_at(fam, [(21 * float(np.cos(a)), 21 * float(np.sin(a))) for a in angles])
 
 
 def test_the_heart_predicate_sees_the_picture(suite: Suite) -> None:
     """The same eight crosses on a block of two rows of four squares are another picture: the heart's
     predicate rejects every frame of it."""
     fam = suite.family("cross_stitched_heart")
-    stimuli = fam.scene.sensor.stimuli
-    assert stimuli.object is not None
     squares = [(i, j) for j in (0.5, -0.5) for i in (-1.5, -0.5, 0.5, 1.5)]
     block = [((i + j) * AIDA_MM / np.sqrt(2), (j - i) * AIDA_MM / np.sqrt(2)) for i, j in squares for _ in range(2)]
-    crosses = tuple((round(x, 3), round(y, 3)) for x, y in block)
-    assert_told_apart(stimuli, with_stimuli(fam, object=dataclasses.replace(stimuli.object, offsets_mm=crosses)))
+    assert_told_apart_with_parts_at(fam, block)
 
 
 def test_the_rosette_predicate_sees_the_golden_angle(suite: Suite) -> None:
@@ -313,23 +317,17 @@ def test_the_rosette_predicate_sees_the_golden_angle(suite: Suite) -> None:
     assert stimuli.object is not None
     distances = np.hypot(*np.asarray(stimuli.object.offsets_mm).T)
     angles = np.deg2rad(np.arange(13) * 144.0)
-    fifths = tuple(
-        (round(float(d * np.cos(a)), 3), round(float(d * np.sin(a)), 3)) for d, a in zip(distances, angles, strict=True)
-    )
-    assert_told_apart(stimuli, with_stimuli(fam, object=dataclasses.replace(stimuli.object, offsets_mm=fifths)))
+    assert_told_apart_with_parts_at(fam, zip(distances * np.cos(angles), distances * np.sin(angles), strict=True))
 
 
 def test_the_ammonite_predicate_sees_the_logarithmic_spiral(suite: Suite) -> None:
     """The same pieces on an Archimedean spiral (whorls evenly spaced, from the same outer to the same
     inner radius) are another shell: the ammonite's predicate rejects every frame of it."""
     fam = suite.family("ammonite_fossil")
-    stimuli = fam.scene.sensor.stimuli
-    assert stimuli.object is not None
     bearings = np.deg2rad(6.0 - 45.0 * np.arange(15))
     radii = np.linspace(16.0, 16.0 * 2 ** (-14 / 8), 15)
     corners = np.stack([radii * np.cos(bearings), radii * np.sin(bearings)], axis=-1)
-    even = tuple((round(float(x), 3), round(float(y), 3)) for x, y in (corners[1:] + corners[:-1]) / 2)
-    assert_told_apart(stimuli, with_stimuli(fam, object=dataclasses.replace(stimuli.object, offsets_mm=even)))
+    assert_told_apart_with_parts_at(fam, (corners[1:] + corners[:-1]) / 2)
 
 
 @pytest.mark.parametrize("reference", sorted(references()))
