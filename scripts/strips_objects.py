@@ -11,8 +11,8 @@ router that sends a frame to the objects' expert or to ``strips16``, and prints 
     python scripts/strips_objects.py plan --rounds 7 --data data/objects --out runs/objects7
     python scripts/strips_objects.py plan --rounds 8 --teacher --data data/objects --out runs/objects8d
     python scripts/strips_objects.py router --rounds 7 --data data/objects --out runs/objects-router7
-    python scripts/strips_objects.py router --two-spheres --rounds 10 --data data/objects --out runs/sphere-router \
-        --expert runs/objects10c/candidate.onnx     # round 12's router (docs/strips.md, "Round 12")
+    python scripts/strips_objects.py router --two-spheres --threshold 0.3 --rounds 10 --data data/objects \
+        --out runs/sphere-router-t0.3 --expert runs/objects10c/candidate.onnx   # round 12's (docs/strips.md)
 
 ``--rounds K`` means rounds 1..K. Family ``i`` (in the suite's order) of round ``k`` is drawn at seed
 ``SEED + 100 * k + i``; no evaluation in the repository uses seeds in that range (evaluations draw at
@@ -107,14 +107,18 @@ def train_router(rounds: int, root: Path, out: Path, expert: str) -> dict[str, A
     return strips_prior_router.train(out, generic=generic, models=models)
 
 
-def train_sphere_router(rounds: int, root: Path, out: Path, expert: str) -> dict[str, Any]:
+def train_sphere_router(
+    rounds: int, root: Path, out: Path, expert: str, threshold: float = strips_prior_router.THRESHOLD
+) -> dict[str, Any]:
     """Round 12's router: two-sphere frames go to ``strips16``, every other frame - the shape library's
     included - to ``expert`` (:data:`SPHERE_ROUTER_LIBRARY`, :data:`SPHERE_ROUTER_GENERIC` and the
-    objects of rounds 1..``rounds``)."""
+    objects of rounds 1..``rounds``), a frame whose probability of generic is at least ``threshold``."""
     generic = dict(SPHERE_ROUTER_GENERIC)
     generic |= {str(f): SPHERE_ROUTER_FRAMES_PER_FAMILY for *_, f in object_folders(rounds, root)}
     models = {"library": strips_prior_router.MODELS["library"], "generic": expert}
-    return strips_prior_router.train(out, generic=generic, models=models, library=SPHERE_ROUTER_LIBRARY)
+    return strips_prior_router.train(
+        out, generic=generic, models=models, library=SPHERE_ROUTER_LIBRARY, threshold=threshold
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -131,14 +135,22 @@ def main(argv: list[str] | None = None) -> int:
         if name == "router":
             p.add_argument("--expert", required=True, help="the objects' expert's ONNX file")
             p.add_argument("--two-spheres", action="store_true", help="two spheres alone on the library side")
+            p.add_argument(
+                "--threshold",
+                type=float,
+                default=strips_prior_router.THRESHOLD,
+                help="--two-spheres: the probability of generic that sends a frame to the expert",
+            )
     args = parser.parse_args(argv)
     if args.command == "data":
         write_data(args.rounds, args.out)
     elif args.command == "plan":
         print(plan(args.rounds, args.data, args.out, args.teacher))
     else:
-        train_one = train_sphere_router if args.two_spheres else train_router
-        card = train_one(args.rounds, args.data, args.out, args.expert)
+        if args.two_spheres:
+            card = train_sphere_router(args.rounds, args.data, args.out, args.expert, args.threshold)
+        else:
+            card = train_router(args.rounds, args.data, args.out, args.expert)
         print(json.dumps({k: card[k] for k in ("held_out_accuracy", "threshold")}))
     return 0
 

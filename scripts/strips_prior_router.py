@@ -53,11 +53,16 @@ def train(
     models: dict[str, str] | None = None,
     log: Any = print,
     library: dict[str, int] | None = None,
+    threshold: float = THRESHOLD,
 ) -> dict[str, Any]:
     """Fit the router on ``library``'s frames (label 0; default :data:`LIBRARY`) and ``generic``'s (label
     1; default :data:`GENERIC`), folder -> first frames; write ``out/router.onnx`` and its card
-    (``models``: the two members, default :data:`MODELS`)."""
+    (``models``: the two members, default :data:`MODELS`; ``threshold``: the probability of generic at or
+    above which a frame goes to the generic member)."""
     import torch
+
+    if not 0.0 < threshold < 1.0:
+        raise ValueError(f"threshold must be a probability strictly between 0 and 1, got {threshold}")
 
     library = LIBRARY if library is None else library
     generic = GENERIC if generic is None else generic
@@ -83,7 +88,7 @@ def train(
         accuracy = float(((net(xt[val]).squeeze(1) > 0).float() == yt[val]).float().mean())
     log(f"router: held-out accuracy {accuracy:.4f} on {len(val)} frames")
     export_mlp(net, xt[:1], out / "router.onnx", "logit")
-    card = {"mean": mean.tolist(), "std": std.tolist(), "threshold": THRESHOLD, "held_out_accuracy": accuracy}
+    card = {"mean": mean.tolist(), "std": std.tolist(), "threshold": threshold, "held_out_accuracy": accuracy}
     card |= {"library": library, "generic": generic, "models": models}
     (out / "router.json").write_text(json.dumps(card, indent=1))
     return card

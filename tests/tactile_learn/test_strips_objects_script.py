@@ -80,13 +80,14 @@ def test_the_two_sphere_router_keeps_only_two_spheres_on_the_library_side(
     seen: dict[str, object] = {}
 
     def fake_train(
-        out: Path, generic: dict[str, int], models: dict[str, str], library: dict[str, int]
+        out: Path, generic: dict[str, int], models: dict[str, str], library: dict[str, int], threshold: float
     ) -> dict[str, object]:
-        seen.update(generic=generic, models=models, library=library)
-        return {"held_out_accuracy": 1.0, "threshold": 0.5}
+        seen.update(generic=generic, models=models, library=library, threshold=threshold)
+        return {"held_out_accuracy": 1.0, "threshold": threshold}
 
     monkeypatch.setattr(strips_prior_router, "train", fake_train)
-    objects.train_sphere_router(2, tmp_path, tmp_path / "r", "runs/objects10c/candidate.onnx")
+    objects.train_sphere_router(2, tmp_path, tmp_path / "r", "runs/objects10c/candidate.onnx", 0.3)
+    assert seen["threshold"] == 0.3
     library, generic = seen["library"], seen["generic"]
     assert isinstance(library, dict) and isinstance(generic, dict)
     assert library == {"data/pf-spheres-train": 20000}
@@ -98,3 +99,9 @@ def test_the_two_sphere_router_keeps_only_two_spheres_on_the_library_side(
     ten = len(objects.object_folders(10, tmp_path)) * objects.SPHERE_ROUTER_FRAMES_PER_FAMILY
     assert abs(sum(library.values()) - sum(objects.SPHERE_ROUTER_GENERIC.values()) - ten) <= 100
     assert seen["models"] == {"library": "models/strips16.onnx", "generic": "runs/objects10c/candidate.onnx"}
+
+
+def test_a_router_threshold_outside_0_1_is_refused(tmp_path: Path) -> None:
+    for bad in (0.0, 1.0, -0.2, float("nan")):
+        with pytest.raises(ValueError, match="threshold"):
+            strips_prior_router.train(tmp_path, threshold=bad)
