@@ -27,16 +27,15 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import strips_unseen
 from strips_experts import features, fit_mlp, read_frames
 from strips_transfer import card_family
+from strips_unseen import CLASSICAL
 
-from synth.io import atomic_write_json, atomic_write_text
 from synth.suite import load_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.suites import suite_eval_data
-
-CLASSICAL = ("intersection", "projection")
 
 
 def specialists_of(models: list[str], suite: str) -> dict[str, str]:
@@ -190,10 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     command = "python scripts/strips_known_objects.py " + " ".join(argv if argv is not None else sys.argv[1:])
     result["command"] = command
     table = markdown(result, args.default, command)
-    print(table)
-    if args.json:
-        atomic_write_json(args.json, result)
-        atomic_write_text(Path(args.json).with_suffix(".md"), table)
+    strips_unseen.report(result, table, args.json)
     return 0
 
 

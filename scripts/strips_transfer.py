@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from synth.io import atomic_write_json, atomic_write_text
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import strips_unseen
 
 
 def card_family(model: str, suite: str) -> str | None:
@@ -145,10 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     command = "python scripts/strips_transfer.py " + " ".join(argv if argv is not None else sys.argv[1:])
     summary["command"] = command
     table = markdown(summary, command)
-    print(table)
-    if args.json:
-        atomic_write_json(args.json, summary)
-        atomic_write_text(Path(args.json).with_suffix(".md"), table)
+    strips_unseen.report(summary, table, args.json)
     return 0
 
 
