@@ -34,6 +34,7 @@ import numpy as np
 from synth.dataset import generate
 from synth.scene import load_scene
 from synth.suite import load_suite
+from tactile_learn.train_router import fit_mlp
 
 #: the experts: (suite, family) pairs of rounds 1-4 and training scenes, grouped by the physical kind
 #: of contact; families of rounds 1-4 in no cluster (knuckles, a stylus, a feather touch, a pinch, a
@@ -205,45 +206,6 @@ def features(readings: np.ndarray) -> np.ndarray:
     total = above.sum(axis=1, keepdims=True)
     share = above / np.maximum(total, 1e-6)
     return np.concatenate([share * 16.0, np.log(np.maximum(total, 1e-4))], axis=1).astype(np.float32)
-
-
-def fit_mlp(
-    xt: Any,
-    target: Any,
-    fit: np.ndarray,
-    rng: np.random.Generator,
-    seed: int,
-    outputs: int,
-    loss_of: Any,
-    on_epoch: Any = None,
-) -> Any:
-    """A small MLP (inputs -> 96 -> 96 -> ``outputs``) fitted to ``target`` on the rows ``fit`` of the
-    normalised features ``xt``: 60 epochs of batches of 256 drawn with ``rng``, AdamW, one cycle to
-    2e-3; ``on_epoch(epoch, net, last_loss)`` after each epoch. The router's and the fallback flag's net."""
-    import torch
-
-    torch.manual_seed(seed)
-    net = torch.nn.Sequential(
-        torch.nn.Linear(xt.shape[1], 96), torch.nn.ReLU(), torch.nn.Linear(96, 96), torch.nn.ReLU(),
-        torch.nn.Linear(96, outputs),
-    )  # fmt: skip
-    opt = torch.optim.AdamW(net.parameters(), lr=2e-3, weight_decay=1e-4)
-    epochs = 60
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=2e-3, total_steps=epochs * (len(fit) // 256 + 1))
-    for epoch in range(epochs):
-        net.train()
-        perm = torch.from_numpy(rng.permutation(fit))
-        for i in range(0, len(perm), 256):
-            idx = perm[i : i + 256]
-            loss = loss_of(net(xt[idx]), target[idx])
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
-        if on_epoch is not None:
-            on_epoch(epoch, net, loss)
-    net.eval()
-    return net
 
 
 def export_mlp(net: Any, example: Any, path: Path, output: str) -> None:

@@ -63,21 +63,27 @@ def training_frames(model: str) -> Path:
 def fit_router(folders: list[Path], frames: int, seed: int) -> tuple[Any, np.ndarray, np.ndarray]:
     """The object classifier on the first ``frames`` frames of each folder (label: the folder's index), with the
     features' mean and scale it normalises by."""
-    import torch
-
-    xs, labels = [], []
-    for label, folder in enumerate(folders):
+    classes = []
+    for folder in folders:
         readings, _ = read_frames(folder)
         if len(readings) < frames:
             raise SystemExit(f"{folder}: {len(readings)} frames, fewer than --train-frames {frames}")
-        xs.append(features(readings[:frames]))
-        labels.append(np.full(frames, label))
-    x = np.concatenate(xs).astype(np.float32)
+        classes.append(readings[:frames])
+    return fit_classifier(classes, seed)
+
+
+def fit_classifier(classes: list[np.ndarray], seed: int) -> tuple[Any, np.ndarray, np.ndarray]:
+    """``strips_experts``' MLP fitted to tell the readings of each array in ``classes`` (label: its index) apart,
+    with the features' mean and scale it normalises by."""
+    import torch
+
+    x = np.concatenate([features(readings) for readings in classes]).astype(np.float32)
+    labels = np.concatenate([np.full(len(readings), label) for label, readings in enumerate(classes)])
     mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-6
     xt = torch.from_numpy((x - mean) / scale)
-    target = torch.from_numpy(np.concatenate(labels))
+    target = torch.from_numpy(labels)
     rng = np.random.default_rng(seed)
-    net = fit_mlp(xt, target, np.arange(len(x)), rng, seed, len(folders), torch.nn.functional.cross_entropy)
+    net = fit_mlp(xt, target, np.arange(len(x)), rng, seed, len(classes), torch.nn.functional.cross_entropy)
     return net, mean, scale
 
 

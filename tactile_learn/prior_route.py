@@ -27,9 +27,11 @@ import numpy as np
 from synth.errors import ModelError
 from synth.io import sha256_file
 
-__all__ = ["PriorRoute", "route_features"]
+__all__ = ["PriorRoute", "ReadingsMlp", "load_router_arrays", "route_features"]
 
-#: the arrays a router file holds, with their dimensions (``i``: the readings, ``h``: hidden width)
+#: the arrays a router file holds, with their dimensions (``f``: the features, the readings and their total's
+#: log; ``h``: hidden width; ``c``: outputs, one logit for this router, one per class for
+#: :class:`~tactile_learn.known_objects.ObjectRouter`)
 _ARRAYS = {
     "mean": ("f",),
     "std": ("f",),
@@ -37,8 +39,8 @@ _ARRAYS = {
     "b0": ("h",),
     "w1": ("h", "h"),
     "b1": ("h",),
-    "w2": (1, "h"),
-    "b2": (1,),
+    "w2": ("c", "h"),
+    "b2": ("c",),
 }
 _FLOAT32 = np.dtype(np.float32)
 
@@ -53,17 +55,14 @@ def route_features(readings: np.ndarray, offset: float, share_scale: float) -> n
     return np.concatenate([share * np.float32(share_scale), np.log(np.maximum(total, np.float32(1e-4)))], axis=1)
 
 
-class PriorRoute:
-    """The router of a routed model card: :meth:`generic` of a batch, :meth:`generic_frame` of one frame."""
+class ReadingsMlp:
+    """A router's network in numpy: the readings' features (:func:`route_features`) through two hidden ReLU
+    layers to ``c`` logits, its first layer folded with the features' normalisation."""
 
-    def __init__(self, arrays: dict[str, np.ndarray], offset: float, share_scale: float, threshold: float) -> None:
-        if not 0.0 < threshold < 1.0:
-            raise ModelError(f"router threshold {threshold!r} is not a probability strictly between 0 and 1")
+    def __init__(self, arrays: dict[str, np.ndarray], offset: float, share_scale: float) -> None:
         if not (math.isfinite(offset) and math.isfinite(share_scale) and share_scale > 0.0):
             raise ModelError(f"router offset {offset!r} and share scale {share_scale!r} must be finite (scale > 0)")
-        self.offset, self.share_scale, self.threshold = float(offset), float(share_scale), float(threshold)
-        #: the logit at or above which a frame is generic (``threshold`` as a probability)
-        self.logit_threshold = math.log(threshold / (1.0 - threshold))
+        self.offset, self.share_scale = float(offset), float(share_scale)
         a = {k: np.asarray(v, dtype=np.float64) for k, v in arrays.items()}
         n = a["mean"].shape[0] - 1  # readings per frame
         # The first layer folded with the features' normalisation: for loads above the offset ``u``
@@ -76,54 +75,78 @@ class PriorRoute:
         self.log_weights = w0[:, n].astype(np.float32)
         self.bias0 = (a["b0"] - w0 @ a["mean"]).astype(np.float32)
         self.w1t, self.b1 = np.ascontiguousarray(a["w1"].T, dtype=np.float32), a["b1"].astype(np.float32)
-        self.w2, self.b2 = a["w2"][0].astype(np.float32), float(a["b2"][0])
+        self.w2t, self.b2s = np.ascontiguousarray(a["w2"].T, dtype=np.float32), a["b2"].astype(np.float32)
         self._offset32 = np.float32(self.offset)
+
+    def hidden(self, readings: np.ndarray) -> np.ndarray:
+        """(B, h) float32: the second hidden layer's activations for readings (B, n) (NaN rows for frames
+        with a NaN or infinite reading)."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            above = np.maximum(readings - self._offset32, np.float32(0.0))
+            total = above.sum(axis=1, keepdims=True)
+            scale = np.float32(self.share_scale) / np.maximum(total, np.float32(1e-6))
+            log_total = np.log(np.maximum(total, np.float32(1e-4)))
+            h = np.maximum((above @ self.load_weights) * scale + log_total * self.log_weights + self.bias0, 0.0)
+            return np.maximum(h @ self.w1t + self.b1, np.float32(0.0))
+
+    def logits(self, readings: np.ndarray) -> np.ndarray:
+        """(B, c) float32 logits for readings (B, n)."""
+        with np.errstate(invalid="ignore", over="ignore"):
+            return self.hidden(readings) @ self.w2t + self.b2s
+
+
+def load_router_arrays(path: Path, sha256: str, inputs: int, outputs: int) -> dict[str, np.ndarray]:
+    """The arrays of the router file ``path`` (an ``.npz`` of :data:`_ARRAYS`), checked against its card's
+    ``sha256``, the model's ``inputs`` (readings per frame) and the router's ``outputs`` (logits)."""
+    if not path.is_file():
+        raise ModelError(f"{path}: router file not found (the model card routes frames through it)")
+    if sha256_file(path) != sha256:
+        raise ModelError(f"{path}: checksum differs from its card's: the router is corrupt or belongs to another card")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: np.asarray(data[k]) for k in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise ModelError(f"{path}: cannot read the router ({exc})") from None
+    missing = sorted(set(_ARRAYS) - set(arrays))
+    if missing:
+        raise ModelError(f"{path}: the router lacks {', '.join(missing)}")
+    sizes = {"f": inputs + 1, "h": arrays["b0"].shape[0] if arrays["b0"].ndim == 1 else -1, "c": outputs}
+    for name, dims in _ARRAYS.items():
+        want = tuple(sizes[d] for d in dims)
+        if arrays[name].shape != want:
+            raise ModelError(f"{path}: router array {name} has shape {arrays[name].shape}, expected {want}")
+        if not np.isfinite(arrays[name]).all():
+            raise ModelError(f"{path}: router array {name} holds NaN or infinite values")
+    if not (arrays["std"] > 0).all():
+        raise ModelError(f"{path}: router array std must be positive")
+    return arrays
+
+
+class PriorRoute(ReadingsMlp):
+    """The router of a routed model card: :meth:`generic` of a batch, :meth:`generic_frame` of one frame."""
+
+    def __init__(self, arrays: dict[str, np.ndarray], offset: float, share_scale: float, threshold: float) -> None:
+        if not 0.0 < threshold < 1.0:
+            raise ModelError(f"router threshold {threshold!r} is not a probability strictly between 0 and 1")
+        super().__init__(arrays, offset, share_scale)
+        self.threshold = float(threshold)
+        #: the logit at or above which a frame is generic (``threshold`` as a probability)
+        self.logit_threshold = math.log(threshold / (1.0 - threshold))
+        self.w2, self.b2 = self.w2t[:, 0], float(self.b2s[0])
 
     @classmethod
     def load(
         cls, path: Path, sha256: str, inputs: int, offset: float, share_scale: float, threshold: float
     ) -> PriorRoute:
-        """The router in ``path`` (an ``.npz`` of :data:`_ARRAYS`), checked against its card's
+        """The router in ``path`` (an ``.npz`` of :data:`_ARRAYS` with one output), checked against its card's
         ``sha256`` and the model's ``inputs`` (readings per frame)."""
-        if not path.is_file():
-            raise ModelError(f"{path}: router file not found (the model card routes frames through it)")
-        if sha256_file(path) != sha256:
-            raise ModelError(
-                f"{path}: checksum differs from its card's: the router is corrupt or belongs to another card"
-            )
-        try:
-            with np.load(path, allow_pickle=False) as data:
-                arrays = {k: np.asarray(data[k]) for k in data.files}
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
-            raise ModelError(f"{path}: cannot read the router ({exc})") from None
-        missing = sorted(set(_ARRAYS) - set(arrays))
-        if missing:
-            raise ModelError(f"{path}: the router lacks {', '.join(missing)}")
-        sizes = {"f": inputs + 1, "h": arrays["b0"].shape[0] if arrays["b0"].ndim == 1 else -1}
-        for name, dims in _ARRAYS.items():
-            want = tuple(sizes[d] if isinstance(d, str) else d for d in dims)
-            if arrays[name].shape != want:
-                raise ModelError(f"{path}: router array {name} has shape {arrays[name].shape}, expected {want}")
-            if not np.isfinite(arrays[name]).all():
-                raise ModelError(f"{path}: router array {name} holds NaN or infinite values")
-        if not (arrays["std"] > 0).all():
-            raise ModelError(f"{path}: router array std must be positive")
-        return cls(arrays, offset, share_scale, threshold)
+        return cls(load_router_arrays(path, sha256, inputs, 1), offset, share_scale, threshold)
 
     def logit(self, readings: np.ndarray) -> np.ndarray:
         """(B,) the router's logit of generic for readings (B, n) (NaN for a frame with a NaN or
         infinite reading)."""
         with np.errstate(invalid="ignore", over="ignore"):
-            return self._logit(readings)
-
-    def _logit(self, readings: np.ndarray) -> np.ndarray:
-        above = np.maximum(readings - self._offset32, np.float32(0.0))
-        total = above.sum(axis=1, keepdims=True)
-        scale = np.float32(self.share_scale) / np.maximum(total, np.float32(1e-6))
-        log_total = np.log(np.maximum(total, np.float32(1e-4)))
-        h = np.maximum((above @ self.load_weights) * scale + log_total * self.log_weights + self.bias0, 0.0)
-        h = np.maximum(h @ self.w1t + self.b1, np.float32(0.0))
-        return h @ self.w2 + np.float32(self.b2)
+            return self.hidden(readings) @ self.w2 + np.float32(self.b2)
 
     def generic(self, readings: np.ndarray) -> np.ndarray:
         """(B,) bool: the frames the router sends to the generic network (NaN logits: not generic)."""

@@ -32,6 +32,7 @@ SUBCOMMANDS = (
     "materials",
     "sweep",
     "cards",
+    "objects",
     "demo",
 )
 

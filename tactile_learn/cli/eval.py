@@ -26,6 +26,7 @@ EXAMPLES = """\
   tactile-learn eval --task strips --data my_frames.npz --scene strips5 --method projection
   tactile-learn eval --task thermal --data my_touches/ --method curve_match
   tactile-learn eval --task strips --suite strips16_ood --method strips16 --json ood.json
+  tactile-learn eval --task strips --data data/kitchen-test --method bundles/kitchen/bundle.json  # a bundle
   tactile-learn eval --task thermal --data robot/ --method adapted/ --durations 0.5,1,2,4 --group-by condition
   tactile-learn eval --task thermal --data robot/ --method adapted/model.onnx    # adapt's network alone
   tactile-learn eval --task thermal --data robot/ --method press_aligned --train labelled/ --scene adapted/sensor.toml
@@ -51,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--method",
         required=True,
-        help="classical method name, shipped model name, MODEL.onnx, or torch weights (a run folder, NAME.pt)",
+        help="classical method name, shipped model name, MODEL.onnx, a known-objects bundle (DIR/bundle.json), "
+        "or torch weights (a run folder, NAME.pt)",
     )
     parser.add_argument(
         "--scene", default=None, help="scene of the data (default: the dataset's, else the model's, else the task's)"

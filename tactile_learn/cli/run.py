@@ -30,7 +30,11 @@ result (no contact) without running the method. A model's card must carry the fl
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, choices=TASK_NAMES)
-    parser.add_argument("--method", required=True, help="shipped model name, MODEL.onnx, or a classical method")
+    parser.add_argument(
+        "--method",
+        required=True,
+        help="shipped model name, MODEL.onnx, a known-objects bundle (DIR), or a classical method",
+    )
     parser.add_argument("--frames", required=True, help=".npz with the task's input array")
     parser.add_argument("--out", required=True, help="output .npz")
     parser.add_argument("--scene", default=None, help="scene of the frames (default: the model's, else the task's)")

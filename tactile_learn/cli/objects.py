@@ -1,0 +1,102 @@
+"""tactile-learn objects: build a known-objects bundle (a router over one-object strip specialists)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+from synth.errors import ConfigError
+from tactile_learn.cli.common import non_negative_float, positive_int
+
+HELP = "build a known-objects bundle: each known object's frames to its own specialist, the rest to the default"
+EXAMPLES = """\
+  # 1. a specialist per object: frames of the object, then the default fine-tuned on them
+  tactile-learn generate --scene my_objects/bobby_pin.toml --n 24000 --seed 1 --out data/bobby_pin-train
+  tactile-learn train --task strips --data data/bobby_pin-train --val data/bobby_pin-val \\
+      --init models/strips16.pt --epochs 8 --lr 3e-4 --out runs/bobby_pin
+  tactile-learn export runs/bobby_pin --out runs/bobby_pin/specialist.onnx
+  # 2. the bundle: a router fitted on the specialists' own training frames and on frames of other objects
+  tactile-learn objects --object bobby_pin=runs/bobby_pin/specialist.onnx \\
+      --object cookie=runs/cookie/specialist.onnx --other data/shapes-mixed-train --out bundles/kitchen
+  # 3. use it wherever a method is named
+  tactile-learn eval --task strips --data data/kitchen-test --method bundles/kitchen/bundle.json
+Each object's frames are the dataset its specialist's card names (or --data NAME=DIR). The threshold
+is the lowest probability (at least 0.5) that sends at most --false-share of the --other datasets'
+held-out frames to a specialist; bundle.json records it with what it cost on held-out frames. Objects
+unlike both the known ones and --other can still be sent to a specialist: docs/strips.md, "Known
+objects among unknown ones", measures how often. Needs torch (the router is fitted here)."""
+
+
+def _pairs(values: list[str] | None, flag: str) -> dict[str, Path]:
+    out: dict[str, Path] = {}
+    for value in values or []:
+        name, sep, path = value.partition("=")
+        if not sep or not name or not path:
+            raise ConfigError(f"{flag} {value!r}: expected NAME=PATH")
+        if name in out:
+            raise ConfigError(f"{flag}: {name!r} given twice")
+        out[name] = Path(path)
+    return out
+
+
+def _recipe(args: argparse.Namespace, objects: dict[str, Path], data: dict[str, Path]) -> list[str]:
+    """The command that builds this bundle again, with portable paths (the bundle records it)."""
+    from tactile_learn.provenance import portable_path
+
+    recipe = ["tactile-learn", "objects"]
+    for flag, pairs in (("--object", objects), ("--data", data)):
+        for name, path in pairs.items():
+            recipe += [flag, f"{name}={portable_path(path)}"]
+    recipe += ["--other", *(portable_path(p) for p in args.other), "--out", portable_path(args.out)]
+    recipe += ["--default", args.default, "--train-frames", str(args.train_frames)]
+    recipe += ["--other-frames", str(args.other_frames), "--val-frames", str(args.val_frames)]
+    return [*recipe, "--false-share", str(args.false_share), "--seed", str(args.seed)]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--object", action="append", required=True, help="NAME=SPECIALIST.onnx (repeatable)")
+    parser.add_argument("--other", nargs="+", required=True, help="datasets of objects that are not known")
+    parser.add_argument("--out", required=True, help="the bundle's folder (new)")
+    parser.add_argument("--default", default="strips16", help="the model every other frame goes to")
+    parser.add_argument("--data", action="append", default=None, help="NAME=DIR: an object's frames (repeatable)")
+    parser.add_argument("--train-frames", type=positive_int, default=5000, help="frames of each object to train on")
+    parser.add_argument("--other-frames", type=positive_int, default=60000, help="frames over --other to train on")
+    parser.add_argument("--val-frames", type=positive_int, default=200, help="held-out frames of each dataset")
+    parser.add_argument("--false-share", type=non_negative_float, default=0.01, help="held-out other frames routed")
+    parser.add_argument("--seed", type=int, default=0, help="the router's seed")
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        from tactile_learn.train_known_objects import build_bundle
+    except ImportError:
+        raise ConfigError(
+            "tactile-learn objects fits a router with torch: pip install 'tactile-learn[train]'"
+        ) from None
+    objects = _pairs(args.object, "--object")
+    data = _pairs(args.data, "--data")
+    unknown = sorted(set(data) - set(objects))
+    if unknown:
+        raise ConfigError(f"--data names no --object: {', '.join(unknown)}")
+    command = shlex.join(_recipe(args, objects, data))
+    bundle = build_bundle(
+        objects,
+        [Path(p) for p in args.other],
+        Path(args.out),
+        default=args.default,
+        data=data,
+        train_frames=args.train_frames,
+        other_frames=args.other_frames,
+        val_frames=args.val_frames,
+        false_share=args.false_share,
+        seed=args.seed,
+        command=command,
+    )
+    v = bundle["validation"]
+    print(f"wrote {Path(args.out) / 'bundle.json'}: accept {bundle['accept']:.4f}")
+    print(f"held-out frames of --other sent to a specialist: {100 * v['other_routed_share']:.1f} %")
+    for name, o in v["objects"].items():
+        own, default = 100 * o["to_own_specialist"], 100 * o["to_default"]
+        print(f"  {name}: {own:.1f} % of its held-out frames to its specialist, {default:.1f} % to the default")
+    return 0
