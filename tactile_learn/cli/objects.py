@@ -11,10 +11,10 @@ from tactile_learn.cli.common import non_negative_float, positive_int
 
 HELP = "build a known-objects bundle: each known object's frames to its own specialist, the rest to the default"
 EXAMPLES = """\
-  # 1. a specialist per object: frames of the object, then the default fine-tuned on them
+  # 1. a specialist per object: frames of the object, then the objects' expert fine-tuned on them
   tactile-learn generate --scene my_objects/bobby_pin.toml --n 24000 --seed 1 --out data/bobby_pin-train
   tactile-learn train --task strips --data data/bobby_pin-train --val data/bobby_pin-val \\
-      --init models/strips16.pt --epochs 8 --lr 3e-4 --out runs/bobby_pin
+      --init models/strips16_generic.pt --epochs 8 --lr 3e-4 --out runs/bobby_pin
   tactile-learn export runs/bobby_pin --out runs/bobby_pin/specialist.onnx
   # 2. the bundle: a router fitted on the specialists' own training frames and on frames of other objects
   tactile-learn objects --object bobby_pin=runs/bobby_pin/specialist.onnx \\
