@@ -8,6 +8,8 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from tests.paths import REPO_ROOT
 
 sys.path.insert(0, str(REPO_ROOT / "scripts"))
@@ -34,3 +36,16 @@ def test_a_model_path_is_timed_beside_its_namesake_in_the_before_folder(tmp_path
     assert strips_latency.main(argv) == 0
     timed = json.loads(out.read_text())["median_us"]
     assert f"{model} (before)" in timed and timed[f"{model} (before)"] > 0
+
+
+def test_a_suites_frames_are_spread_over_its_families() -> None:
+    from synth.suite import load_suite
+    from tactile_learn.suites import suite_eval_data
+
+    frames = strips_latency.timing_frames("strips16_unseen4", n=30)
+    suite = load_suite("strips16_unseen4")
+    each = -(-30 // len(suite.families))
+    first = next(iter(suite_eval_data(suite, each, 909090).values())).inputs
+    assert frames.shape == (30, 32) and frames.dtype == np.float32
+    np.testing.assert_array_equal(frames[:each], first)
+    assert strips_latency.timing_frames(None, n=8).shape == (8, 32)
