@@ -50,7 +50,7 @@ from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.suites import suite_eval_data
 from tactile_learn.tasks import get_task
-from tactile_learn.train_known_objects import accept_for, split_frames
+from tactile_learn.train_known_objects import accept_for, other_frames_for
 
 #: the acceptance thresholds every router is also reported at, beside the one chosen on held-out frames
 SWEEP = (0.5, 0.8, 0.9, 0.95, 0.99)
@@ -125,7 +125,9 @@ def evaluate(args: argparse.Namespace) -> dict[str, Any]:
     if min(len(k) for k in known) < args.train_frames:
         raise SystemExit(f"a specialist's training set has fewer than --train-frames {args.train_frames} frames")
     try:
-        other_train, other_val = split_frames([Path(p) for p in args.other], args.other_frames, args.val_frames)
+        calibrate_on = "datasets" if args.hold_out_datasets else "frames"
+        other = [Path(p) for p in args.other]
+        other_train, other_val = other_frames_for(other, args.other_frames, args.val_frames, calibrate_on)
     except ConfigError as exc:
         raise SystemExit(str(exc)) from None
     routers = {
@@ -221,6 +223,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--train-frames", type=int, default=5000, help="frames of each specialist's training set")
     parser.add_argument("--other-frames", type=int, default=24000, help="frames of the other class, over --other")
     parser.add_argument("--val-frames", type=int, default=200, help="held-out frames of each --other folder")
+    parser.add_argument(
+        "--hold-out-datasets",
+        action="store_true",
+        help="train other on every other --other dataset and choose the threshold on the rest (unseen objects)",
+    )
     parser.add_argument("--false-share", type=float, default=0.01, help="unknown frames routed at the threshold")
     parser.add_argument("--seed", type=int, default=0, help="the routers' seed")
     parser.add_argument("--seeds", type=int, nargs="+", default=[5151, 6262])

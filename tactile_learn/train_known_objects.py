@@ -4,7 +4,10 @@ The router is :func:`tactile_learn.train_router.fit_mlp` on the readings' featur
 (:func:`tactile_learn.prior_route.route_features`), one class per known object (frames of the dataset its
 specialist was trained on) and one more, *other*: frames of objects that are not known. The threshold
 ``accept`` is chosen on frames no router trained on: the lowest probability (at least 0.5) that routes at
-most ``false_share`` of the *other* datasets' last ``val_frames`` frames to a specialist. What it cost is
+most ``false_share`` of them to a specialist. By default they are the last ``val_frames`` frames of every
+second *other* dataset, whose objects the router never trains on (a deployment meets objects it never saw;
+docs/strips.md measured that a threshold chosen on unseen frames of seen objects promises too much); with
+``calibrate_on="frames"`` the last ``val_frames`` of every *other* dataset, the router trained on all. What it cost is
 measured on held-out frames of the known objects too (the last ``val_frames`` of each object's dataset) and
 recorded in the bundle.
 
@@ -30,7 +33,7 @@ from tactile_learn.known_objects import BUNDLE_FILE, BUNDLE_KIND, DEFAULT, Objec
 from tactile_learn.prior_route import PriorRoute, route_features
 from tactile_learn.train_router import fit_mlp, router_arrays
 
-__all__ = ["OFFSET", "SHARE_SCALE", "accept_for", "build_bundle", "split_frames"]
+__all__ = ["CALIBRATIONS", "OFFSET", "SHARE_SCALE", "accept_for", "build_bundle", "other_frames_for", "split_frames"]
 
 #: the router's features: the strip readings above the readout's offset, as shares of their total x 16
 OFFSET, SHARE_SCALE = 0.3, 16.0
@@ -56,6 +59,30 @@ def split_frames(folders: list[Path], frames: int, val_frames: int) -> tuple[np.
         train.append(readings[:each])
         held.append(readings[len(readings) - val_frames :])
     return np.concatenate(train)[:frames], np.concatenate(held)
+
+
+#: where the threshold is chosen: on held-out frames of the --other datasets' objects ("frames"), or on whole
+#: --other datasets the router never trains on ("datasets": objects it never saw, as a deployment meets them)
+CALIBRATIONS = ("datasets", "frames")
+
+
+def other_frames_for(
+    other: list[Path], frames: int, val_frames: int, calibrate_on: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """The *other* class's training frames and the frames the threshold is chosen on. ``"frames"``: the first
+    ``frames`` over all of ``other`` and the last ``val_frames`` of each; ``"datasets"``: the first ``frames``
+    over every other dataset (the 1st, 3rd, ...) and the last ``val_frames`` of each of the rest."""
+    if calibrate_on not in CALIBRATIONS:
+        raise ConfigError(f"calibrate on {calibrate_on!r}: expected one of {', '.join(CALIBRATIONS)}")
+    if calibrate_on == "frames":
+        return split_frames(other, frames, val_frames)
+    if len(other) < 2:
+        raise ConfigError(
+            "calibrating on held-out datasets needs at least two --other datasets (or calibrate on frames)"
+        )
+    train, _ = split_frames(other[0::2], frames, 0)
+    _, held = split_frames(other[1::2], 0, val_frames)
+    return train, held
 
 
 def accept_for(top_known: np.ndarray, false_share: float) -> float:
@@ -125,6 +152,7 @@ def build_bundle(
     other_frames: int = 60000,
     val_frames: int = 200,
     false_share: float = 0.01,
+    calibrate_on: str = "datasets",
     seed: int = 0,
     command: str = "",
     log: Callable[[str], None] = print,
@@ -148,7 +176,7 @@ def build_bundle(
         train, held = split_frames([folder], train_frames, val_frames)
         known_train.append(train)
         known_val.append(held)
-    other_train, other_val = split_frames(other, other_frames, val_frames)
+    other_train, other_val = other_frames_for(other, other_frames, val_frames, calibrate_on)
     log(f"fitting the router: {len(objects)} objects + other, {sum(map(len, known_train)) + len(other_train)} frames")
     arrays = fit_router([*known_train, other_train], seed)
     router = ObjectRouter(arrays, OFFSET, SHARE_SCALE, tuple(objects))
@@ -179,6 +207,7 @@ def build_bundle(
         "share_scale": SHARE_SCALE,
         "accept": accept,
         "false_share": false_share,
+        "calibrate_on": calibrate_on,
         "frames": {"train_per_object": train_frames, "other": other_frames, "held_out_per_dataset": val_frames},
         "other": [str(p) for p in other],
         "seed": seed,

@@ -18,14 +18,15 @@ EXAMPLES = """\
   tactile-learn export runs/bobby_pin --out runs/bobby_pin/specialist.onnx
   # 2. the bundle: a router fitted on the specialists' own training frames and on frames of other objects
   tactile-learn objects --object bobby_pin=runs/bobby_pin/specialist.onnx \\
-      --object cookie=runs/cookie/specialist.onnx --other data/shapes-mixed-train --out bundles/kitchen
+      --object cookie=runs/cookie/specialist.onnx --other data/mixed-train data/other-objects/* --out bundles/kitchen
   # 3. use it wherever a method is named
   tactile-learn eval --task strips --data data/kitchen-test --method bundles/kitchen/bundle.json
 Each object's frames are the dataset its specialist's card names (or --data NAME=DIR). The threshold
-is the lowest probability (at least 0.5) that sends at most --false-share of the --other datasets'
-held-out frames to a specialist; bundle.json records it with what it cost on held-out frames. Objects
-unlike both the known ones and --other can still be sent to a specialist: docs/strips.md, "Known
-objects among unknown ones", measures how often. Needs torch (the router is fitted here)."""
+is the lowest probability (at least 0.5) that sends at most --false-share of held-out frames of other
+objects to a specialist: by default the last frames of every second --other dataset, whose objects the
+router never trains on (give many kinds of objects); bundle.json records it with what it cost. Objects
+unlike all of these can still be sent to a specialist: docs/strips.md, "Known objects among unknown
+ones", measures how often. Needs torch (the router is fitted here)."""
 
 
 def _pairs(values: list[str] | None, flag: str) -> dict[str, Path]:
@@ -51,7 +52,8 @@ def _recipe(args: argparse.Namespace, objects: dict[str, Path], data: dict[str, 
     recipe += ["--other", *(portable_path(p) for p in args.other), "--out", portable_path(args.out)]
     recipe += ["--default", args.default, "--train-frames", str(args.train_frames)]
     recipe += ["--other-frames", str(args.other_frames), "--val-frames", str(args.val_frames)]
-    return [*recipe, "--false-share", str(args.false_share), "--seed", str(args.seed)]
+    recipe += ["--false-share", str(args.false_share), "--calibrate-on", args.calibrate_on]
+    return [*recipe, "--seed", str(args.seed)]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -64,6 +66,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--other-frames", type=positive_int, default=60000, help="frames over --other to train on")
     parser.add_argument("--val-frames", type=positive_int, default=200, help="held-out frames of each dataset")
     parser.add_argument("--false-share", type=non_negative_float, default=0.01, help="held-out other frames routed")
+    parser.add_argument(
+        "--calibrate-on",
+        choices=["datasets", "frames"],
+        default=None,
+        help="choose the threshold on every second --other dataset, never trained on (default with two or more "
+        "--other datasets), or on held-out frames of every --other dataset (the default with one)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="the router's seed")
 
 
@@ -79,6 +88,8 @@ def run(args: argparse.Namespace) -> int:
     unknown = sorted(set(data) - set(objects))
     if unknown:
         raise ConfigError(f"--data names no --object: {', '.join(unknown)}")
+    if args.calibrate_on is None:
+        args.calibrate_on = "datasets" if len(args.other) >= 2 else "frames"
     command = shlex.join(_recipe(args, objects, data))
     bundle = build_bundle(
         objects,
@@ -90,12 +101,14 @@ def run(args: argparse.Namespace) -> int:
         other_frames=args.other_frames,
         val_frames=args.val_frames,
         false_share=args.false_share,
+        calibrate_on=args.calibrate_on,
         seed=args.seed,
         command=command,
     )
     v = bundle["validation"]
     print(f"wrote {Path(args.out) / 'bundle.json'}: accept {bundle['accept']:.4f}")
-    print(f"held-out frames of --other sent to a specialist: {100 * v['other_routed_share']:.1f} %")
+    held = "held-out --other datasets" if args.calibrate_on == "datasets" else "held-out frames of --other"
+    print(f"{held} sent to a specialist: {100 * v['other_routed_share']:.1f} %")
     for name, o in v["objects"].items():
         own, default = 100 * o["to_own_specialist"], 100 * o["to_default"]
         print(f"  {name}: {own:.1f} % of its held-out frames to its specialist, {default:.1f} % to the default")

@@ -219,6 +219,7 @@ def test_objects_builds_a_bundle_whose_threshold_keeps_its_promise(
         bundle["command"].startswith("tactile-learn objects --object ring=")
         and "--false-share 0.1" in bundle["command"]
     )
+    assert bundle["calibrate_on"] == "frames"  # one --other dataset: its held-out frames
     est = resolve_method("strips", str(out), load_scene("strips16"))
     held_other = stored_readings(other)[-20:]
     routed = np.mean(est.route(held_other) != DEFAULT)
@@ -283,5 +284,32 @@ def test_a_router_that_cannot_keep_the_promise_writes_no_bundle(
     spec = stand_in_specialist(tmp_path / "s", data)
     monkeypatch.setattr(fit, "accept_for", lambda top, share: 1.0)
     with pytest.raises(ConfigError, match="cannot tell them from the known objects"):
-        fit.build_bundle({"ring": spec}, [data], tmp_path / "out", train_frames=10, other_frames=10, val_frames=10)
+        fit.build_bundle(
+            {"ring": spec},
+            [data],
+            tmp_path / "out",
+            train_frames=10,
+            other_frames=10,
+            val_frames=10,
+            calibrate_on="frames",
+        )
     assert not (tmp_path / "out").exists()
+
+
+def test_the_threshold_is_chosen_on_datasets_the_router_never_trains_on(tmp_path: Path) -> None:
+    from tactile_learn.train_known_objects import other_frames_for
+
+    folders = [write_family("strips16_unseen4", f, 30, 50 + i, tmp_path / f) for i, f in enumerate(
+        ("bead_loop", "card_corner", "ruler_edge")
+    )]  # fmt: skip
+    frames = {f: stored_readings(f) for f in folders}
+    train, held = other_frames_for(folders, 40, 10, "datasets")
+    np.testing.assert_array_equal(train, np.concatenate([frames[folders[0]][:20], frames[folders[2]][:20]]))
+    np.testing.assert_array_equal(held, frames[folders[1]][-10:])
+    train, held = other_frames_for(folders, 30, 5, "frames")
+    np.testing.assert_array_equal(held, np.concatenate([frames[f][-5:] for f in folders]))
+    assert len(train) == 30
+    with pytest.raises(ConfigError, match="at least two --other datasets"):
+        other_frames_for(folders[:1], 10, 5, "datasets")
+    with pytest.raises(ConfigError, match="expected one of datasets, frames"):
+        other_frames_for(folders, 10, 5, "objects")
