@@ -28,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import strips_unseen
-from strips_experts import features, fit_mlp, read_frames
+from strips_experts import features, read_frames
 from strips_transfer import card_family
 from strips_unseen import CLASSICAL
 
@@ -36,6 +36,7 @@ from synth.suite import load_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
 from tactile_learn.suites import suite_eval_data
+from tactile_learn.train_known_objects import fit_classes
 
 
 def specialists_of(models: list[str], suite: str) -> dict[str, str]:
@@ -74,17 +75,9 @@ def fit_router(folders: list[Path], frames: int, seed: int) -> tuple[Any, np.nda
 
 def fit_classifier(classes: list[np.ndarray], seed: int) -> tuple[Any, np.ndarray, np.ndarray]:
     """``strips_experts``' MLP fitted to tell the readings of each array in ``classes`` (label: its index) apart,
-    with the features' mean and scale it normalises by."""
-    import torch
-
-    x = np.concatenate([features(readings) for readings in classes]).astype(np.float32)
-    labels = np.concatenate([np.full(len(readings), label) for label, readings in enumerate(classes)])
-    mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-6
-    xt = torch.from_numpy((x - mean) / scale)
-    target = torch.from_numpy(labels)
-    rng = np.random.default_rng(seed)
-    net = fit_mlp(xt, target, np.arange(len(x)), rng, seed, len(classes), torch.nn.functional.cross_entropy)
-    return net, mean, scale
+    with the features' mean and scale it normalises by: the bundle builder's own fit
+    (:func:`tactile_learn.train_known_objects.fit_classes`; its features are ``strips_experts.features``)."""
+    return fit_classes(classes, seed)
 
 
 def classify(net: Any, mean: np.ndarray, scale: np.ndarray, readings: np.ndarray) -> np.ndarray:

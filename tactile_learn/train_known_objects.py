@@ -33,7 +33,16 @@ from tactile_learn.known_objects import BUNDLE_FILE, BUNDLE_KIND, DEFAULT, Objec
 from tactile_learn.prior_route import PriorRoute, route_features
 from tactile_learn.train_router import fit_mlp, router_arrays
 
-__all__ = ["CALIBRATIONS", "OFFSET", "SHARE_SCALE", "accept_for", "build_bundle", "other_frames_for", "split_frames"]
+__all__ = [
+    "CALIBRATIONS",
+    "OFFSET",
+    "SHARE_SCALE",
+    "accept_for",
+    "build_bundle",
+    "fit_classes",
+    "other_frames_for",
+    "split_frames",
+]
 
 #: the router's features: the strip readings above the readout's offset, as shares of their total x 16
 OFFSET, SHARE_SCALE = 0.3, 16.0
@@ -104,9 +113,10 @@ def _specialist_data(model: Path) -> Path:
         ) from None
 
 
-def fit_router(classes: list[np.ndarray], seed: int) -> dict[str, np.ndarray]:
-    """The router's arrays: :func:`~tactile_learn.train_router.fit_mlp` telling the readings of each array in
-    ``classes`` (label: its index) apart, on the features :class:`ObjectRouter` computes."""
+def fit_classes(classes: list[np.ndarray], seed: int) -> tuple[Any, np.ndarray, np.ndarray]:
+    """:func:`~tactile_learn.train_router.fit_mlp` telling the readings of each array in ``classes`` (label: its
+    index) apart, on the features :class:`ObjectRouter` computes: the net (torch) and the features' mean and
+    scale it normalises by."""
     import torch
 
     x = np.concatenate([route_features(c, OFFSET, SHARE_SCALE) for c in classes]).astype(np.float32)
@@ -121,7 +131,12 @@ def fit_router(classes: list[np.ndarray], seed: int) -> dict[str, np.ndarray]:
         len(classes),
         torch.nn.functional.cross_entropy,
     )
-    return router_arrays(net, mean, std)
+    return net, mean, std
+
+
+def fit_router(classes: list[np.ndarray], seed: int) -> dict[str, np.ndarray]:
+    """The router's arrays (:func:`fit_classes`' net and normalisation, as a router file holds them)."""
+    return router_arrays(*fit_classes(classes, seed))
 
 
 def held_out_routing(

@@ -200,7 +200,7 @@ def stand_in_specialist(folder: Path, data: Path) -> Path:
 def test_objects_builds_a_bundle_whose_threshold_keeps_its_promise(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    pytest.importorskip("torch")
+    pytest.importorskip("torch", reason="torch (training extra) is not installed")
     from tactile_learn.train_known_objects import build_bundle
 
     suite = "strips16_unseen4"
@@ -277,7 +277,7 @@ def test_one_frames_choice_is_the_batch_choice() -> None:
 def test_a_router_that_cannot_keep_the_promise_writes_no_bundle(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    pytest.importorskip("torch")
+    pytest.importorskip("torch", reason="torch (training extra) is not installed")
     import tactile_learn.train_known_objects as fit
 
     data = write_family("strips16_unseen4", "bead_loop", 30, 41, tmp_path / "d")
