@@ -51,6 +51,8 @@ EXEMPT: dict[str, tuple[str, ...]] = {
         "tactile_learn.nets*",
         "tactile_learn.bench",
         "tactile_learn.sweep",
+        "tactile_learn.object_tomography",  # fitting a learned object's template: training time
+        "tactile_learn.learn_object",  # renders, fine-tunes and exports a learned object
     ),
 }
 #: (start pattern, target pattern, why): no chain of imports from ``start`` may reach ``target``,

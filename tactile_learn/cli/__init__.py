@@ -33,6 +33,7 @@ SUBCOMMANDS = (
     "sweep",
     "cards",
     "objects",
+    "learn-object",
     "demo",
 )
 
@@ -47,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"tactile-learn {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMANDS:
-        module = importlib.import_module(f"tactile_learn.cli.{name}")
+        module = importlib.import_module(f"tactile_learn.cli.{name.replace('-', '_')}")
         p = sub.add_parser(
             name,
             help=module.HELP,
