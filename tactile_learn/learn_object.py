@@ -21,7 +21,6 @@ used, the fit and the command. The specialist is a strip model like any other: `
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -37,7 +36,14 @@ from synth.io import atomic_write_json
 from synth.scene import Scene
 from synth.sensors.strips.physics import StripSensor
 from synth.sensors.strips.stimuli import OUTPUTS
-from tactile_learn.object_tomography import ObjectTemplate, TomographyConfig, fit_template, frame_loads, rotated
+from tactile_learn.object_tomography import (
+    ObjectTemplate,
+    TomographyConfig,
+    fit_template,
+    frame_loads,
+    readable_object_frames,
+    rotated,
+)
 
 __all__ = ["LearnConfig", "learn_object", "render_frames", "write_rendered"]
 
@@ -177,7 +183,6 @@ def learn_object(
 ) -> dict[str, Any]:
     """Fit, render, fine-tune and export in ``out`` (new or empty); returns what ``object.json`` records."""
     from tactile_learn.export import export
-    from tactile_learn.object_tomography import readable_object_frames
     from tactile_learn.train import TrainConfig, train
 
     cfg = config or LearnConfig()
@@ -235,9 +240,3 @@ def learn_object(
     }
     atomic_write_json(out / OBJECT_FILE, record)
     return record
-
-
-def read_record(folder: Path) -> dict[str, Any]:
-    """``object.json`` of a learned object's folder."""
-    result: dict[str, Any] = json.loads((folder / OBJECT_FILE).read_text())
-    return result

@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -374,7 +374,3 @@ def fit_template(
         scene_digest=scene_digest,
         history=tuple(history),
     )
-
-
-def tomography_record(tomo: TomographyConfig) -> dict[str, Any]:
-    return asdict(tomo)
