@@ -36,18 +36,11 @@ from synth.io import atomic_write_json
 from synth.scene import Scene
 from synth.sensors.strips.physics import StripSensor
 from synth.sensors.strips.stimuli import OUTPUTS
-from tactile_learn.object_tomography import (
-    ObjectTemplate,
-    TomographyConfig,
-    fit_template,
-    frame_loads,
-    readable_object_frames,
-    rotated,
-)
+from tactile_learn.learned_objects import OBJECT_FILE, OBJECT_KIND, RENDERED_TRAIN, RENDERED_VAL, readings_record
+from tactile_learn.object_frames import frame_loads, readable_object_frames
+from tactile_learn.object_tomography import ObjectTemplate, TomographyConfig, fit_template, rotated
 
 __all__ = ["LearnConfig", "learn_object", "render_frames", "write_rendered"]
-
-OBJECT_FILE = "object.json"
 
 
 @dataclass(frozen=True)
@@ -180,8 +173,11 @@ def learn_object(
     tomography: TomographyConfig | None = None,
     command: str | None = None,
     log: Callable[[str], None] = print,
+    readings_path: str | None = None,
 ) -> dict[str, Any]:
-    """Fit, render, fine-tune and export in ``out`` (new or empty); returns what ``object.json`` records."""
+    """Fit, render, fine-tune and export in ``out`` (new or empty); returns what ``object.json`` records
+    (with ``readings_path``, where ``readings`` came from and their checksum: a known-objects router is
+    fitted on them later)."""
     from tactile_learn.export import export
     from tactile_learn.train import TrainConfig, train
 
@@ -200,15 +196,15 @@ def learn_object(
     fit_seconds = time.perf_counter() - start
     log(f"rendering {cfg.n_train} training and {cfg.n_val} validation frames")
     seeds = np.random.SeedSequence(cfg.seed).generate_state(2)
-    write_rendered(template, scene, cfg.n_train, int(seeds[0]), out / "train", cfg.vary)
-    write_rendered(template, scene, cfg.n_val, int(seeds[1]), out / "val", cfg.vary)
+    write_rendered(template, scene, cfg.n_train, int(seeds[0]), out / RENDERED_TRAIN, cfg.vary)
+    write_rendered(template, scene, cfg.n_val, int(seeds[1]), out / RENDERED_VAL, cfg.vary)
     log(f"fine-tuning {cfg.init} for {cfg.epochs} epochs")
     run = out / "run"
     trained = train(
         TrainConfig(
             task="strips",
-            data=str(out / "train"),
-            val=str(out / "val"),
+            data=str(out / RENDERED_TRAIN),
+            val=str(out / RENDERED_VAL),
             out=str(run),
             epochs=cfg.epochs,
             lr=cfg.lr,
@@ -221,8 +217,9 @@ def learn_object(
     )
     card = export(run, out / "specialist.onnx", name=out.name or "specialist")
     record = {
-        "kind": "tactile-learn learned object",
+        "kind": OBJECT_KIND,
         "frames": counts | {"fitted": len(frames)},
+        "readings": None if readings_path is None else readings_record(readings_path, readings),
         "fit": {
             "tomography": asdict(tomo),
             "residual_median": float(np.median(template.residual)),

@@ -1,7 +1,8 @@
 """Resolve a ``--method`` value to an estimator: a classical method's name, a shipped model's
 name (``models/<name>.onnx``), the path of any ``.onnx`` model with its card, a known-objects
-bundle (:mod:`tactile_learn.known_objects`: its ``bundle.json`` or folder), or trained torch
-weights (a finished run folder or a model's ``NAME.pt``: needs torch, imported only then)."""
+bundle (:mod:`tactile_learn.known_objects`: its ``bundle.json`` or folder), a learned object's folder
+(:mod:`tactile_learn.learned_objects`: its specialist), or trained torch weights (a finished run folder or
+a model's ``NAME.pt``: needs torch, imported only then)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from synth.errors import ConfigError, ModelError, TactileError
 from synth.scene import Scene
 from tactile_learn.estimators.base import Estimator
 from tactile_learn.known_objects import bundle_method, default_model_spec, is_bundle, read_bundle
+from tactile_learn.learned_objects import is_learned_object, learned_specialist
 from tactile_learn.model_files import model_card, model_dirs, onnx_method, shipped_cards, shipped_models
 from tactile_learn.runtime import OnnxEstimator
 from tactile_learn.tasks import get_task
@@ -55,6 +57,11 @@ def model_scene(task: str, spec: str) -> Scene | None:
         except ModelError:  # resolve_method says what is wrong
             return None
         return model_scene(task, default_model_spec(folder, bundle))
+    if is_learned_object(spec):
+        try:
+            return model_scene(task, str(learned_specialist(spec)))
+        except ModelError:  # resolve_method says what is wrong
+            return None
     if _is_weights(spec):
         try:
             from tactile_learn.checkpoints import load_weights, weights_scene
@@ -83,6 +90,8 @@ def resolve_method(task: str, spec: str, scene: Scene, threads: int = 1) -> Esti
     classical = task_obj.classical_methods()
     if spec in classical:
         return classical[spec](scene)
+    if is_learned_object(spec):  # a learn-object folder stands for its specialist
+        spec = str(learned_specialist(spec))
     if _is_weights(spec):
         return _torch_weights(task, spec, scene, threads)
     if is_bundle(spec):

@@ -46,6 +46,8 @@ __all__ = [
 
 #: the router's features: the strip readings above the readout's offset, as shares of their total x 16
 OFFSET, SHARE_SCALE = 0.3, 16.0
+#: fewer frames of a known object than this (or than asked for, if fewer) is no class to fit
+MIN_OBJECT_FRAMES = 100
 
 
 def _readings(folder: Path) -> np.ndarray:
@@ -174,7 +176,8 @@ def build_bundle(
 ) -> dict[str, Any]:
     """Fit the router of ``objects`` (name -> specialist ``.onnx`` with its card) against ``other`` datasets,
     choose its threshold, and write the bundle to the new folder ``out``; returns ``bundle.json``'s content.
-    Each object's frames are ``data[name]``, else the dataset its specialist's card names."""
+    Each object's frames are ``data[name]``, else the dataset its specialist's card names: at most ``train_frames``
+    of them (fewer where it holds fewer; ``trained_on`` records how many)."""
     if len(objects) < 1 or DEFAULT in objects:
         raise ConfigError(f"a bundle needs at least one object, none named {DEFAULT!r}")
     if min(train_frames, other_frames, val_frames) < 1:
@@ -185,12 +188,20 @@ def build_bundle(
         if not model.is_file() or not model.with_suffix(".json").is_file():
             raise ConfigError(f"object {name!r}: {model} and its card {model.with_suffix('.json')} must both exist")
     # every input read and checked before anything is written
-    known_train, known_val = [], []
+    known_train, known_val, trained_on = [], [], {}
     for name, model in objects.items():
         folder = (data or {}).get(name) or _specialist_data(model)
-        train, held = split_frames([folder], train_frames, val_frames)
-        known_train.append(train)
-        known_val.append(held)
+        readings = _readings(folder)
+        # at most train_frames: a learned object's own recording may hold fewer (the bundle records how many)
+        take, least = min(train_frames, len(readings) - val_frames), min(train_frames, MIN_OBJECT_FRAMES)
+        if take < least:
+            raise ConfigError(
+                f"object {name!r}: {folder} holds {len(readings)} frames; at least {least} to train on "
+                f"+ {val_frames} held out are needed"
+            )
+        known_train.append(readings[:take])
+        known_val.append(readings[len(readings) - val_frames :])
+        trained_on[name] = {"data": str(folder), "frames": int(take)}
     other_train, other_val = other_frames_for(other, other_frames, val_frames, calibrate_on)
     log(f"fitting the router: {len(objects)} objects + other, {sum(map(len, known_train)) + len(other_train)} frames")
     arrays = fit_router([*known_train, other_train], seed)
@@ -224,6 +235,7 @@ def build_bundle(
         "false_share": false_share,
         "calibrate_on": calibrate_on,
         "frames": {"train_per_object": train_frames, "other": other_frames, "held_out_per_dataset": val_frames},
+        "trained_on": trained_on,
         "other": [str(p) for p in other],
         "seed": seed,
         "validation": validation,

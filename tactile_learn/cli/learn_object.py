@@ -16,14 +16,14 @@ EXAMPLES = """\
   tactile-learn learn-object --readings my_presses.npz --scene strips16 --out objects/stapler
   tactile-learn eval --task strips --data stapler_test.npz --method objects/stapler/specialist.onnx
   # several learned objects behind a router that leaves every other frame to the default
-  tactile-learn objects --object stapler=objects/stapler/specialist.onnx \\
-      --object bobbin=objects/bobbin/specialist.onnx --other data/mixed-train data/other-objects/* --out bundles/desk
+  tactile-learn objects --learned objects --other data/mixed-train data/other-objects/* --out bundles/desk
 The readings are an .npz with 'readings' (frames, N+M) or a dataset folder (only its readings are read:
 no pressure map, no label). Frames without a press and saturated frames are left out; at least
 --min-frames must remain. The folder gets template.npz (the fitted shape), the rendered train/ and val/
 datasets, the fine-tune's run/, specialist.onnx with its card, and object.json (written last: frames
-used, the fit's residual, the command). docs/strips.md ("Learning an object from its readings") measures
-it on round 12's objects. Needs torch; about 8 minutes on one core with the defaults."""
+used, the fit's residual, the command, the readings' path and checksum: `tactile-learn objects --learned`
+fits its router on them). docs/strips.md ("Learning an object from its readings") measures it on rounds 11
+and 12. Needs torch; about 8 minutes on one core with the defaults."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -94,7 +94,15 @@ def run(args: argparse.Namespace) -> int:
     recipe += ["--scene", scene.name, "--frames", str(args.frames)]
     recipe += ["--iterations", str(args.iterations), "--n-train", str(args.n_train), "--n-val", str(args.n_val)]
     recipe += ["--vary", str(args.vary), "--epochs", str(args.epochs), "--init", args.init, "--seed", str(args.seed)]
-    record = learn_object(readings, scene, Path(args.out), config, tomography, command=shlex.join(recipe))
+    record = learn_object(
+        readings,
+        scene,
+        Path(args.out),
+        config,
+        tomography,
+        command=shlex.join(recipe),
+        readings_path=str(args.readings),  # as given: the bundle builder reads them again from there
+    )
     f = record["frames"]
     print(
         f"frames: {f['used']} of {f['frames']} used ({f['idle']} idle, {f['saturated']} saturated), "

@@ -12,10 +12,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from synth.scene import read_toml
+from synth.dataset import generate, load_arrays
+from synth.io import sha256_file
+from synth.scene import load_scene, read_toml
 from synth.suite import Suite, parse_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
+from tactile_learn.prior_route import PriorRoute
+from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.suites import suite_eval_data
 from tests.paths import REPO_ROOT
 
@@ -94,3 +98,68 @@ def test_without_learned_objects_every_family_is_judged_with_the_models() -> Non
 def test_a_folder_without_learned_objects_is_refused(tmp_path: Path) -> None:
     with pytest.raises(SystemExit, match=r"no FAMILY/specialist\.onnx"):
         strips_learned_objects.judge(two_families(), tmp_path, [], None, [3], 4, log=lambda _: None)
+
+
+def test_the_own_readings_check_compares_its_residuals_on_own_and_rendered_frames(tmp_path: Path) -> None:
+    suite = two_families()
+    learned = tmp_path / "learned"
+    model = stand_in(learned / "bottle_cap", "strips16_small")
+    generate(load_scene("strips16"), 40, 21, model.parent / "val")  # stands in for its rendered frames
+    own = suite_eval_data(suite, 30, 22)["bottle_cap"].inputs
+    np.savez(tmp_path / "bottle_cap-own.npz", readings=own)
+    result = strips_learned_objects.judge(
+        suite,
+        learned,
+        [],
+        None,
+        [3],
+        8,
+        log=lambda _: None,
+        guard_readings=str(tmp_path / "{family}-own.npz"),
+        guard_frames=25,
+    )
+    check = result["families"]["bottle_cap"]["own_readings_check"]
+    checked = CheckedStripModel(model, scene=suite.base).prepare()
+    on_own = checked.check(own[:25])  # every frame of the family has a press: none is left out
+    on_rendered = checked.check(load_arrays(model.parent / "val", ["readings"])["readings"])
+    assert check["frames"] == 25
+    assert np.isclose(check["residual_own"], np.median(on_own["residual"]))
+    assert np.isclose(check["residual_ratio"], check["residual_own"] / np.median(on_rendered["residual"]))
+    assert np.isclose(check["flagged_own"], np.mean(on_own["flagged"]))
+    assert "flagged) |" in strips_learned_objects.markdown(result)
+
+
+def test_a_bundle_among_the_models_reports_the_share_routed_to_the_familys_own_specialist(tmp_path: Path) -> None:
+    suite = two_families()
+    bundle = tmp_path / "bundle"
+    bundle.mkdir()
+    for suffix in (".onnx", ".json"):
+        shutil.copy(MODELS / f"strips16_small{suffix}", bundle / f"bottle_cap{suffix}")
+    hidden = 4
+    arrays = {  # a router that sends every frame to bottle_cap: its last layer's weights zero, its bias large
+        "mean": np.zeros(33),
+        "std": np.ones(33),
+        "w0": np.zeros((hidden, 33)),
+        "b0": np.zeros(hidden),
+        "w1": np.zeros((hidden, hidden)),
+        "b1": np.zeros(hidden),
+        "w2": np.zeros((2, hidden)),
+        "b2": np.array([10.0, 0.0]),
+    }
+    PriorRoute.save(bundle / "router.npz", arrays)
+    bundle_json = {
+        "format": 1,
+        "kind": "known_objects",
+        "task": "strips",
+        "default": "strips16",
+        "objects": {"bottle_cap": "bottle_cap.onnx"},
+        "router": "router.npz",
+        "router_sha256": sha256_file(bundle / "router.npz"),
+        "offset": 0.3,
+        "share_scale": 16.0,
+        "accept": 0.9,
+    }
+    (bundle / "bundle.json").write_text(json.dumps(bundle_json))
+    result = strips_learned_objects.judge(suite, None, [str(bundle)], None, [3], 6, log=lambda _: None)
+    routed = {fam: f["routed_to_own"] for fam, f in result["families"].items()}
+    assert routed == {"bottle_cap": {str(bundle): 1.0}, "five_fingertips": {str(bundle): 0.0}}
