@@ -53,11 +53,18 @@ def random_router(classes: int, hidden: int = 8, seed: int = 0, scale: float = 1
     }
 
 
-def bundle_folder(folder: Path, arrays: dict[str, np.ndarray], accept: float = 0.5, **edits: Any) -> Path:
-    """A bundle of the stand-in specialists with ``arrays`` as its router; ``edits`` replace bundle fields."""
+def bundle_folder(
+    folder: Path,
+    arrays: dict[str, np.ndarray],
+    accept: float = 0.5,
+    stand_ins: dict[str, str] = STAND_INS,
+    **edits: Any,
+) -> Path:
+    """A bundle of ``stand_ins`` (object name -> shipped model standing in for its specialist) with ``arrays`` as
+    its router; ``edits`` replace bundle fields."""
     folder.mkdir()
     objects = {}
-    for name, model in STAND_INS.items():
+    for name, model in stand_ins.items():
         shutil.copyfile(MODELS / f"{model}.onnx", folder / f"{name}.onnx")
         shutil.copyfile(MODELS / f"{model}.json", folder / f"{name}.json")
         objects[name] = f"{name}.onnx"

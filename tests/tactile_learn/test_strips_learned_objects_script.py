@@ -13,15 +13,14 @@ import numpy as np
 import pytest
 
 from synth.dataset import generate, load_arrays
-from synth.io import sha256_file
 from synth.scene import load_scene, read_toml
 from synth.suite import Suite, parse_suite
 from tactile_learn.methods import resolve_method
 from tactile_learn.metrics import pearson_per_frame
-from tactile_learn.prior_route import PriorRoute
 from tactile_learn.strips_guard import CheckedStripModel
 from tactile_learn.suites import suite_eval_data
 from tests.paths import REPO_ROOT
+from tests.tactile_learn.test_known_objects import bundle_folder
 
 sys.path.insert(0, str(REPO_ROOT / "scripts"))
 import strips_learned_objects
@@ -131,10 +130,6 @@ def test_the_own_readings_check_compares_its_residuals_on_own_and_rendered_frame
 
 def test_a_bundle_among_the_models_reports_the_share_routed_to_the_familys_own_specialist(tmp_path: Path) -> None:
     suite = two_families()
-    bundle = tmp_path / "bundle"
-    bundle.mkdir()
-    for suffix in (".onnx", ".json"):
-        shutil.copy(MODELS / f"strips16_small{suffix}", bundle / f"bottle_cap{suffix}")
     hidden = 4
     arrays = {  # a router that sends every frame to bottle_cap: its last layer's weights zero, its bias large
         "mean": np.zeros(33),
@@ -146,20 +141,7 @@ def test_a_bundle_among_the_models_reports_the_share_routed_to_the_familys_own_s
         "w2": np.zeros((2, hidden)),
         "b2": np.array([10.0, 0.0]),
     }
-    PriorRoute.save(bundle / "router.npz", arrays)
-    bundle_json = {
-        "format": 1,
-        "kind": "known_objects",
-        "task": "strips",
-        "default": "strips16",
-        "objects": {"bottle_cap": "bottle_cap.onnx"},
-        "router": "router.npz",
-        "router_sha256": sha256_file(bundle / "router.npz"),
-        "offset": 0.3,
-        "share_scale": 16.0,
-        "accept": 0.9,
-    }
-    (bundle / "bundle.json").write_text(json.dumps(bundle_json))
+    bundle = bundle_folder(tmp_path / "bundle", arrays, accept=0.9, stand_ins={"bottle_cap": "strips16_small"}).parent
     result = strips_learned_objects.judge(suite, None, [str(bundle)], None, [3], 6, log=lambda _: None)
     routed = {fam: f["routed_to_own"] for fam, f in result["families"].items()}
     assert routed == {"bottle_cap": {str(bundle): 1.0}, "five_fingertips": {str(bundle): 0.0}}
